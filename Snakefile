@@ -1,0 +1,34 @@
+"""FreqBRDF: fast, uncertainty-aware SVBRDF recovery from multi-view HDR captures.
+
+    snakemake --cores 2                                   # embedded default config
+    snakemake --cores 2 --configfile config/paper.yaml    # paper-scale preset
+    snakemake --report results/report.html
+"""
+
+from pathlib import Path
+
+from snakemake.utils import min_version
+
+from freqbrdf.config import check_config
+
+min_version("9.0")
+
+
+configfile: "config/config.yaml"
+
+
+check_config(config, Path(workflow.basedir) / "config" / "schemas" / "config.schema.yaml")
+
+report: "report/workflow.rst"
+
+
+include: "rules/common.smk"
+include: "rules/objects.smk"
+include: "rules/envs.smk"
+include: "rules/captures.smk"
+
+
+rule all:
+    input:
+        benchmark_outputs(),
+    default_target: True

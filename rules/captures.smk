@@ -1,0 +1,31 @@
+RENDER_KEYS = ["resolution", "spp", "max_depth", "fov_deg", "camera_distance", "mask_spp"]
+
+
+rule render_capture:
+    """HDR views of one object under one environment on a Fibonacci upper
+    hemisphere, with coverage masks and OpenCV cameras. Split `train` feeds the
+    estimators; split `test` (a rotated rig) is held out for relighting."""
+    input:
+        **object_files("{object}"),
+        envmap="results/envs/{env}.exr",
+        code=library("render", "cameras", "sh", "mitsuba_setup", "plots"),
+    output:
+        directory("results/captures/{object}/{env}/{split}"),
+    params:
+        # Only the settings that change the images, so editing e.g. test_views
+        # does not rerun the training renders.
+        render={key: config["render"][key] for key in RENDER_KEYS},
+        views=lambda wildcards: config["render"][f"{wildcards.split}_views"],
+        azimuth_deg=lambda wildcards: 0.0 if wildcards.split == "train" else config["render"]["test_azimuth_deg"],
+        seed=lambda wildcards: derived_seed(config["seed"], "render", wildcards.object, wildcards.env, wildcards.split),
+    threads: 2
+    resources:
+        mem_mb=4000,
+    log:
+        "results/logs/render_capture/{object}_{env}_{split}.log",
+    benchmark:
+        "results/benchmarks/render_capture/{object}_{env}_{split}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/render_capture.py"

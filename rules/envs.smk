@@ -1,0 +1,56 @@
+rule build_env:
+    """Equirectangular HDR environment map of one named environment."""
+    input:
+        code=library("envmaps", "sh", "render", "mitsuba_setup"),
+    output:
+        exr="results/envs/{env}.exr",
+        preview="results/envs/{env}.png",
+    params:
+        settings=lambda wildcards: config["envs"][wildcards.env],
+        height=config["envmaps"]["height"],
+        mean_radiance=config["envmaps"]["mean_radiance"],
+    threads: 2
+    resources:
+        mem_mb=2000,
+    log:
+        "results/logs/build_env/{env}.log",
+    benchmark:
+        "results/benchmarks/build_env/{env}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/make_env.py"
+
+
+rule env_spectrum:
+    """Spherical-harmonics power spectrum of one environment: how much high-frequency light it has."""
+    input:
+        exr="results/envs/{env}.exr",
+        code=library("envmaps", "sh", "plots"),
+    output:
+        tsv="results/envs/{env}_spectrum.tsv",
+        png=report("results/envs/{env}_spectrum.png", category="Environments", caption="../report/env_spectrum.rst"),
+    params:
+        lmax=config["envmaps"]["spectrum_lmax"],
+    log:
+        "results/logs/env_spectrum/{env}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/env_spectrum.py"
+
+
+rule env_spectra:
+    """All environments' spectra on one plot."""
+    input:
+        expand("results/envs/{env}_spectrum.tsv", env=ENVS),
+    output:
+        report("results/envs/spectra.png", category="Environments", caption="../report/env_spectra.rst"),
+    params:
+        envs=ENVS,
+    log:
+        "results/logs/env_spectra.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/env_spectra.py"

@@ -1,0 +1,84 @@
+"""Configuration checks and seed derivation shared by the Snakefile and the scripts."""
+
+from __future__ import annotations
+
+import math
+import zlib
+from pathlib import Path
+from typing import Any
+
+
+class ConfigError(ValueError):
+    """A configuration value is invalid; the message names the key."""
+
+
+def _key_path(path) -> str:
+    return ".".join(str(p) for p in path) or "<top level>"
+
+
+def check_config(config: dict[str, Any], schema: str | Path) -> None:
+    """Validate ``config`` against the JSON schema, then across keys.
+
+    Uses :func:`snakemake.utils.validate` (which also fills schema defaults)
+    and turns its multi-line report into one line naming the offending key.
+
+    Parameters
+    ----------
+    config : dict
+        The merged Snakemake configuration.
+    schema : path-like
+        JSON schema (YAML) file.
+
+    Raises
+    ------
+    ConfigError
+        One line: ``config key <dotted.path>: <what is wrong>``.
+    """
+    import jsonschema
+    import yaml
+    from snakemake.utils import validate
+
+    try:
+        validate(config, str(schema))
+    except Exception:
+        with open(schema) as f:
+            schema_dict = yaml.safe_load(f)
+        validator = jsonschema.Draft202012Validator(schema_dict)
+        error = jsonschema.exceptions.best_match(validator.iter_errors(config))
+        if error is None:  # snakemake failed for another reason; let it speak
+            raise
+        raise ConfigError(f"config key {_key_path(error.absolute_path)}: {error.message}") from None
+
+    unknown = [e for e in config["capture_envs"] if e not in config["envs"]]
+    if unknown:
+        raise ConfigError(
+            f"config key capture_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
+        )
+    render = config["render"]
+    half_span = math.degrees(math.asin(1.0 / render["camera_distance"]))
+    if half_span >= render["fov_deg"] / 2.0:
+        raise ConfigError(
+            f"config key render.fov_deg: {render['fov_deg']} degrees is too narrow to frame the object "
+            f"(radius 1) from camera_distance {render['camera_distance']}; it needs more than {2 * half_span:.1f}"
+        )
+
+
+def derived_seed(seed: int, *names: str) -> int:
+    """A seed for one named item (object, environment, view set), stable across runs.
+
+    Parameters
+    ----------
+    seed : int
+        The global seed from config.
+    *names : str
+        Names that identify the item, e.g. ``("object", "torus")``.
+
+    Returns
+    -------
+    int
+        A 31-bit seed; different names give unrelated seeds.
+    """
+    h = zlib.crc32(str(int(seed)).encode())
+    for name in names:
+        h = zlib.crc32(name.encode(), h)
+    return h & 0x7FFFFFFF

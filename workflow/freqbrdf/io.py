@@ -1,0 +1,207 @@
+"""File input and output: float EXR images, PNG previews and JSON, written atomically.
+
+Every writer goes through :func:`atomic_path`, so a killed job never leaves a
+half-written file that looks complete. Every reader fails with a one-line
+message that names the file and what is wrong with it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+_CHANNELS_BY_DEPTH = {1: "Y", 3: "RGB", 4: "RGBA"}
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; move it into place on success.
+
+    The parent directory is created. On an exception the temporary file is
+    removed and ``path`` is left untouched.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix or ".tmp", dir=path.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.replace(tmp_path, path)
+    finally:
+        tmp_path.unlink(missing_ok=True)
+
+
+def write_exr(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write a float32 OpenEXR image (ZIP compression).
+
+    Parameters
+    ----------
+    path : path-like
+        Destination file.
+    image : ndarray, shape (H, W), (H, W, 1), (H, W, 3) or (H, W, 4)
+        Linear values; stored as channel ``Y``, ``RGB`` or ``RGBA``.
+
+    Raises
+    ------
+    ValueError
+        If the shape is not an image or values are not finite.
+    """
+    import OpenEXR
+
+    image = np.asarray(image, dtype=np.float32)
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[..., 0]
+    depth = 1 if image.ndim == 2 else image.shape[2] if image.ndim == 3 else None
+    if depth not in _CHANNELS_BY_DEPTH:
+        raise ValueError(f"{path}: cannot write an image of shape {image.shape} as EXR (need (H, W) or (H, W, 1|3|4))")
+    bad = int(np.count_nonzero(~np.isfinite(image)))
+    if bad:
+        raise ValueError(f"{path}: refusing to write {bad} NaN/Inf values")
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with atomic_path(path) as tmp, OpenEXR.File(header, {_CHANNELS_BY_DEPTH[depth]: np.ascontiguousarray(image)}) as f:
+        f.write(str(tmp))
+
+
+def read_exr(path: str | os.PathLike, *, allow_nonfinite: bool = False) -> np.ndarray:
+    """Read an OpenEXR image as float32.
+
+    Parameters
+    ----------
+    path : path-like
+        EXR file with channels ``Y``, ``RGB`` or ``RGBA`` (other single-layer
+        channel sets are stacked in name order).
+    allow_nonfinite : bool
+        Return NaN/Inf pixels instead of raising (callers that mask and count
+        them, e.g. observation extraction, set this).
+
+    Returns
+    -------
+    ndarray, shape (H, W) or (H, W, C), float32
+
+    Raises
+    ------
+    FileNotFoundError
+        If the file does not exist.
+    ValueError
+        If it is not a readable EXR or holds NaN/Inf values.
+    """
+    import OpenEXR
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: EXR file not found")
+    try:
+        with OpenEXR.File(str(path)) as f:
+            channels = f.channels()
+            if len(channels) == 1:
+                image = next(iter(channels.values())).pixels
+            else:
+                image = np.stack([channels[name].pixels for name in sorted(channels)], axis=-1)
+            image = np.array(image, dtype=np.float32)
+    except Exception as exc:  # OpenEXR raises bare RuntimeErrors without the reason
+        raise ValueError(f"{path}: not a readable OpenEXR file ({exc})") from None
+    if not allow_nonfinite:
+        bad = int(np.count_nonzero(~np.isfinite(image)))
+        if bad:
+            raise ValueError(f"{path}: {bad} NaN/Inf values")
+    return image
+
+
+def to_srgb(linear: np.ndarray) -> np.ndarray:
+    """sRGB transfer curve of linear values clipped to [0, 1].
+
+    Parameters
+    ----------
+    linear : ndarray
+        Linear radiance or reflectance, any shape.
+
+    Returns
+    -------
+    ndarray
+        Display values in [0, 1], same shape.
+    """
+    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def tonemap(hdr: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """Display an HDR image: exposure, extended Reinhard (white point 4), then sRGB.
+
+    Parameters
+    ----------
+    hdr : ndarray, shape (..., 3)
+        Linear radiance.
+    exposure : float
+        Multiplier applied before the curve.
+
+    Returns
+    -------
+    ndarray, same shape, values in [0, 1]
+    """
+    x = np.maximum(np.asarray(hdr, dtype=np.float64) * exposure, 0.0)
+    # Extended Reinhard keeps mid-tones almost linear and maps 4.0 to white,
+    # so highlights of sunny captures stay readable in previews.
+    return to_srgb(x * (1.0 + x / 16.0) / (1.0 + x))
+
+
+def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Write an 8-bit PNG from display values in [0, 1] or from uint8.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination file.
+    image : ndarray, shape (H, W) or (H, W, 3|4)
+        Float values in [0, 1] (clipped) or uint8.
+    """
+    import skimage.io
+
+    image = np.asarray(image)
+    if image.dtype != np.uint8:
+        image = np.round(np.clip(image, 0.0, 1.0) * 255.0).astype(np.uint8)
+    with atomic_path(path) as tmp:
+        skimage.io.imsave(tmp, image, check_contrast=False)
+
+
+def read_png(path: str | os.PathLike) -> np.ndarray:
+    """Read a PNG as uint8, shape (H, W) or (H, W, C).
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        Naming the file when it is missing or not a readable image.
+    """
+    import skimage.io
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: PNG file not found")
+    try:
+        return np.asarray(skimage.io.imread(path))
+    except Exception as exc:
+        raise ValueError(f"{path}: not a readable PNG ({exc})") from None
+
+
+def write_json(path: str | os.PathLike, data: Any) -> None:
+    """Write ``data`` as indented JSON, atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=1) + "\n")
+
+
+def read_json(path: str | os.PathLike) -> Any:
+    """Read JSON, with a one-line error naming the file if missing or malformed."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: JSON file not found")
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: malformed JSON ({exc})") from None

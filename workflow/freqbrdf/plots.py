@@ -1,0 +1,105 @@
+"""Figures of the pipeline (matplotlib, non-interactive backend)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+
+import numpy as np
+
+from .io import atomic_path, to_srgb, tonemap
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: str | os.PathLike) -> None:
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight", format="png")
+    _pyplot().close(fig)
+
+
+def env_spectrum_figure(path: str | os.PathLike, name: str, envmap: np.ndarray, spectrum: np.ndarray, above: int = 4) -> None:
+    """Environment preview beside its SH power spectrum (luminance and RGB).
+
+    Parameters
+    ----------
+    path : path-like
+        PNG destination.
+    name : str
+        Environment name for the title.
+    envmap : ndarray, shape (H, W, 3)
+    spectrum : ndarray, shape (lmax + 1, 4)
+        From :func:`freqbrdf.envmaps.sh_spectrum`.
+    above : int
+        Degree after which power counts as high frequency in the caption.
+    """
+    from .envmaps import high_frequency_fraction
+
+    plt = _pyplot()
+    fig, (ax_img, ax_spec) = plt.subplots(1, 2, figsize=(11, 3.4), gridspec_kw={"width_ratios": [1.6, 1]})
+    ax_img.imshow(tonemap(envmap))
+    ax_img.set_title(f"{name} (tone-mapped equirect; top row = +Y)")
+    ax_img.set_axis_off()
+    degrees = np.arange(len(spectrum))
+    for c, colour in enumerate(["tab:red", "tab:green", "tab:blue"]):
+        ax_spec.semilogy(degrees, spectrum[:, c] / spectrum[:, 3].sum(), color=colour, alpha=0.35, lw=1)
+    ax_spec.semilogy(degrees, spectrum[:, 3] / spectrum[:, 3].sum(), "k.-", label="luminance")
+    frac = high_frequency_fraction(spectrum[:, 3], above)
+    ax_spec.set_title(f"SH power, {100 * frac:.1f}% above degree {above}")
+    ax_spec.set_xlabel("degree l")
+    ax_spec.set_ylabel("S(l) / total power")
+    ax_spec.grid(alpha=0.3)
+    _save(fig, path)
+
+
+def spectra_comparison_figure(path: str | os.PathLike, spectra: Mapping[str, np.ndarray]) -> None:
+    """Normalised luminance power spectra of all environments on one plot.
+
+    Parameters
+    ----------
+    spectra : mapping of str to ndarray, shape (lmax + 1, 4)
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name, spectrum in spectra.items():
+        lum = spectrum[:, 3]
+        ax.semilogy(np.arange(len(lum)), lum / lum.sum(), ".-", label=name)
+    ax.set_xlabel("degree l")
+    ax.set_ylabel("S(l) / total power (luminance)")
+    ax.set_title("Frequency content of the environments")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    _save(fig, path)
+
+
+def contact_sheet(path: str | os.PathLike, images: list[np.ndarray], columns: int = 4) -> None:
+    """Tone-mapped HDR images in a grid, written as one PNG.
+
+    Parameters
+    ----------
+    images : list of ndarray, shape (H, W, 3)
+        Linear radiance, all the same size.
+    """
+    from .io import write_png
+
+    rows = -(-len(images) // columns)
+    h, w = images[0].shape[:2]
+    sheet = np.zeros((rows * h, columns * w, 3))
+    for k, image in enumerate(images):
+        r, c = divmod(k, columns)
+        sheet[r * h : (r + 1) * h, c * w : (c + 1) * w] = tonemap(image)
+    write_png(path, sheet)
+
+
+def texture_preview(path: str | os.PathLike, texture: np.ndarray, srgb: bool) -> None:
+    """PNG preview of a texture: sRGB-encoded colour, or linear grey values."""
+    from .io import write_png
+
+    write_png(path, to_srgb(texture) if srgb else np.clip(texture, 0.0, 1.0))

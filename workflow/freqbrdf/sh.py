@@ -1,0 +1,582 @@
+"""Real spherical harmonics, equirectangular quadrature and Fibonacci sampling.
+
+Conventions
+-----------
+Frame
+    Directions are unit vectors ``d = (x, y, z)`` in a right-handed world
+    frame whose polar axis is **+Y** (world Y-up).  The spherical angles are::
+
+        theta = arccos(y)            in [0, pi]   (polar angle from +Y)
+        phi   = atan2(x, -z)         in (-pi, pi] (azimuth, 0 towards -Z,
+                                                   pi/2 towards +X)
+        d     = (sin(theta) sin(phi), cos(theta), -sin(theta) cos(phi))
+
+    `directions_to_angles` and `angles_to_directions` implement this mapping.
+
+Real spherical harmonics
+    ``Y_lm`` for ``l = 0..lmax`` and ``m = -l..l`` are real and orthonormal on
+    the unit sphere (``int Y_i Y_j dOmega = delta_ij``).  They are stored
+    l-major with flat index ``i = l*l + l + m``, i.e. ``(lmax + 1)**2``
+    coefficients in the order (0,0), (1,-1), (1,0), (1,1), (2,-2), ...
+    With ``N_l^m = sqrt((2l+1)/(4 pi) (l-m)!/(l+m)!)`` and ``P_l^m`` the
+    associated Legendre function **without** the Condon-Shortley phase
+    (``P_1^1(t) = +sqrt(1 - t^2)``)::
+
+        m > 0 :  Y_lm = sqrt(2) N_l^m  P_l^m(cos theta) cos(m phi)
+        m = 0 :  Y_l0 =         N_l^0  P_l(cos theta)
+        m < 0 :  Y_lm = sqrt(2) N_l^|m| P_l^|m|(cos theta) sin(|m| phi)
+
+    so that, e.g., ``Y_00 = 1/sqrt(4 pi)`` and, with ``k = sqrt(3/(4 pi))``,
+    ``Y_1,-1 = k x``, ``Y_1,0 = k y``, ``Y_1,1 = -k z``.
+    Relation to ``scipy.special.sph_harm_y(l, m, theta, phi)`` (which includes
+    the Condon-Shortley phase ``(-1)^m``), for ``m > 0``::
+
+        Y_l,m  = sqrt(2) (-1)^m Re sph_harm_y(l, m, theta, phi)
+        Y_l,-m = sqrt(2) (-1)^m Im sph_harm_y(l, m, theta, phi)
+        Y_l,0  =                Re sph_harm_y(l, 0, theta, phi)
+
+Equirectangular maps
+    Matches the Mitsuba 3 envmap lookup (measured): an ``(H, W)`` image has
+    row ``i`` at polar angle ``theta_i = pi * i / (H - 1)`` (row 0 is exactly
+    the +Y pole, row ``H - 1`` exactly the -Y pole) and column ``j`` at
+    azimuth ``phi_j = 2 pi (j + 0.5) / W`` (this lies in (0, 2 pi); it is the
+    same direction as the wrapped angle in (-pi, pi]).  The pixel grid is
+    thus a trapezoidal-rule grid in theta: a pixel of row ``i`` covers the
+    band ``theta in [theta_i - dtheta/2, theta_i + dtheta/2]`` clipped to
+    ``[0, pi]``, with ``dtheta = pi / (H - 1)``, and an azimuthal width
+    ``2 pi / W``.  Its exact solid angle is
+    ``2 pi / W * (cos(a) - cos(b))``; the map sums to exactly ``4 pi``.
+
+Units
+    Angles are in radians and solid angles in steradians.  Coefficients
+    have the units of the projected function (e.g. radiance) times sr.
+
+All functions are pure (no global mutable state) and return float64 arrays.
+"""
+
+from __future__ import annotations
+
+from typing import Iterator
+
+import numpy as np
+
+__all__ = [
+    "sh_index",
+    "sh_degrees",
+    "n_coeffs",
+    "directions_to_angles",
+    "angles_to_directions",
+    "real_sh",
+    "eval_sh",
+    "equirect_directions",
+    "equirect_solid_angles",
+    "project_equirect",
+    "power_spectrum",
+    "fibonacci_sphere",
+    "fibonacci_hemisphere",
+]
+
+_INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
+_SQRT2 = np.sqrt(2.0)
+# Working-set target (number of float64 values) for one block of the
+# (n_coeffs, n_block) evaluation buffer; keeps the recurrences in cache.
+_BLOCK_VALUES = 1 << 18
+
+
+# --------------------------------------------------------------------------
+# validation helpers
+# --------------------------------------------------------------------------
+def _check_int(value: object, name: str, minimum: int) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an int, got {type(value).__name__} {value!r}")
+    value = int(value)
+    if value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value}")
+    return value
+
+
+def _check_directions(directions: np.ndarray, name: str = "directions") -> np.ndarray:
+    d = np.asarray(directions, dtype=np.float64)
+    if d.ndim < 1 or d.shape[-1] != 3:
+        raise ValueError(f"{name} must have shape (..., 3), got shape {d.shape}")
+    return d
+
+
+def _lmax_from_ncoeffs(n: int, what: str) -> int:
+    lmax = int(round(np.sqrt(n))) - 1
+    if n < 1 or (lmax + 1) ** 2 != n:
+        raise ValueError(
+            f"{what} has {n} coefficients, which is not (lmax + 1)**2 for any lmax >= 0"
+        )
+    return lmax
+
+
+# --------------------------------------------------------------------------
+# indexing
+# --------------------------------------------------------------------------
+def sh_index(l: int, m: int) -> int:
+    """Flat l-major index of ``Y_lm``.
+
+    Parameters
+    ----------
+    l : int
+        Degree, ``l >= 0``.
+    m : int
+        Order, ``-l <= m <= l``.
+
+    Returns
+    -------
+    int
+        ``l*l + l + m``.
+    """
+    l = _check_int(l, "l", 0)
+    if isinstance(m, (bool, np.bool_)) or not isinstance(m, (int, np.integer)):
+        raise TypeError(f"m must be an int, got {type(m).__name__} {m!r}")
+    m = int(m)
+    if abs(m) > l:
+        raise ValueError(f"order m={m} out of range for degree l={l} (need |m| <= l)")
+    return l * l + l + m
+
+
+def n_coeffs(lmax: int) -> int:
+    """Number of coefficients ``(lmax + 1)**2`` up to degree ``lmax``."""
+    lmax = _check_int(lmax, "lmax", 0)
+    return (lmax + 1) ** 2
+
+
+def sh_degrees(lmax: int) -> np.ndarray:
+    """Degree ``l`` of each flat index.
+
+    Parameters
+    ----------
+    lmax : int
+        Maximum degree, ``>= 0``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``((lmax+1)**2,)``, int64; entry ``i`` is the degree of index ``i``.
+    """
+    lmax = _check_int(lmax, "lmax", 0)
+    return np.repeat(np.arange(lmax + 1, dtype=np.int64), 2 * np.arange(lmax + 1) + 1)
+
+
+# --------------------------------------------------------------------------
+# angles
+# --------------------------------------------------------------------------
+def directions_to_angles(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Spherical angles of direction vectors (Y-up convention).
+
+    Parameters
+    ----------
+    d : numpy.ndarray
+        Shape ``(..., 3)``; need not be normalised (the norm is divided out).
+
+    Returns
+    -------
+    theta : numpy.ndarray
+        Shape ``(...)``, polar angle from +Y in ``[0, pi]`` (rad).
+    phi : numpy.ndarray
+        Shape ``(...)``, azimuth ``atan2(x, -z)`` in ``(-pi, pi]`` (rad);
+        0 exactly on the polar axis (``x == z == 0``).
+    """
+    d = _check_directions(d, "d")
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    r = np.sqrt(x * x + y * y + z * z)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        theta = np.arccos(np.clip(y / r, -1.0, 1.0))
+    phi = np.arctan2(x, -z)
+    phi = np.where(phi <= -np.pi, np.pi, phi)
+    phi = np.where((x == 0) & (z == 0), 0.0, phi)  # poles: define phi = 0
+    return theta, phi
+
+
+def angles_to_directions(theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Unit vectors from spherical angles (Y-up convention).
+
+    Parameters
+    ----------
+    theta, phi : numpy.ndarray
+        Broadcastable arrays of polar angle and azimuth (rad).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``broadcast(theta, phi).shape + (3,)``:
+        ``(sin theta sin phi, cos theta, -sin theta cos phi)``.
+    """
+    theta = np.asarray(theta, dtype=np.float64)
+    phi = np.asarray(phi, dtype=np.float64)
+    st = np.sin(theta)
+    return np.stack(
+        np.broadcast_arrays(st * np.sin(phi), np.cos(theta), -st * np.cos(phi)), axis=-1
+    )
+
+
+# --------------------------------------------------------------------------
+# core evaluation
+# --------------------------------------------------------------------------
+def _recurrence_tables(lmax: int) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients a_lm, b_lm of the normalised Legendre recurrence.
+
+    ``q_l^m = a_lm (t q_{l-1}^m - b_lm q_{l-2}^m)`` for ``l >= m + 2``, where
+    ``q_l^m = N_l^m P_l^m / sin^m(theta)`` is a polynomial in ``t = cos theta``.
+    """
+    a = np.zeros((lmax + 1, lmax + 1))
+    b = np.zeros((lmax + 1, lmax + 1))
+    for m in range(lmax + 1):
+        for l in range(m + 2, lmax + 1):
+            a[l, m] = np.sqrt((4.0 * l * l - 1.0) / (l * l - m * m))
+            b[l, m] = np.sqrt(((l - 1.0) ** 2 - m * m) / (4.0 * (l - 1.0) ** 2 - 1.0))
+    return a, b
+
+
+def _sh_block(
+    x: np.ndarray,
+    y: np.ndarray,
+    z: np.ndarray,
+    lmax: int,
+    a: np.ndarray,
+    b: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """Fill ``out`` (n_coeffs, n) with Y_i at unit vectors given by 1-D x, y, z.
+
+    Uses ``sin^m(theta) e^{i m phi} = (u + i v)^m`` with ``u = -z``, ``v = x``
+    (so no trigonometric functions are needed) and the stable three-term
+    recurrence in l for the fully normalised Legendre polynomials
+    ``q_l^m = N_l^m P_l^m / sin^m``.  The final value for ``m != 0`` is
+    ``sqrt(2) q_l^m Re/Im[(u + i v)^m]``.
+    """
+    t = y
+    u = np.negative(z)
+    v = x
+    tmp = np.empty_like(t)
+
+    # m = 0 column (zonal harmonics)
+    out[0].fill(_INV_SQRT_4PI)
+    if lmax >= 1:
+        np.multiply(t, np.sqrt(3.0) * _INV_SQRT_4PI, out=out[2])
+    for l in range(2, lmax + 1):
+        r = out[l * l + l]
+        np.multiply(t, out[(l - 1) * (l - 1) + (l - 1)], out=r)
+        np.multiply(out[(l - 2) * (l - 2) + (l - 2)], b[l, 0], out=tmp)
+        r -= tmp
+        r *= a[l, 0]
+    if lmax == 0:
+        return
+
+    c_m = u.copy()  # Re (u + i v)^m
+    s_m = v.copy()  # Im (u + i v)^m
+    qmm = _INV_SQRT_4PI
+    for m in range(1, lmax + 1):
+        if m > 1:
+            c_new = u * c_m
+            np.multiply(v, s_m, out=tmp)
+            c_new -= tmp
+            s_m *= u
+            np.multiply(v, c_m, out=tmp)
+            s_m += tmp
+            c_m = c_new
+        # q_m^m (constant), including the sqrt(2) of the real form
+        qmm = qmm * np.sqrt((2.0 * m + 1.0) / (2.0 * m))
+        # Store sqrt(2) q_l^m in the +m slots, then split into cos / sin parts.
+        out[m * m + 2 * m].fill(_SQRT2 * qmm)
+        if m + 1 <= lmax:
+            np.multiply(t, _SQRT2 * qmm * np.sqrt(2.0 * m + 3.0), out=out[(m + 1) ** 2 + (m + 1) + m])
+        for l in range(m + 2, lmax + 1):
+            r = out[l * l + l + m]
+            np.multiply(t, out[(l - 1) * (l - 1) + (l - 1) + m], out=r)
+            np.multiply(out[(l - 2) * (l - 2) + (l - 2) + m], b[l, m], out=tmp)
+            r -= tmp
+            r *= a[l, m]
+        for l in range(m, lmax + 1):
+            q = out[l * l + l + m]
+            np.multiply(q, s_m, out=out[l * l + l - m])
+            q *= c_m
+
+
+def _sh_blocks(d_flat: np.ndarray, lmax: int) -> Iterator[tuple[int, int, np.ndarray]]:
+    """Yield ``(start, stop, Y)`` with ``Y`` of shape (n_coeffs, stop - start).
+
+    ``Y`` is a view of a buffer that is reused by the next iteration.
+    Directions are normalised; zero-length vectors give NaN.
+    """
+    n = d_flat.shape[0]
+    k = (lmax + 1) ** 2
+    block = int(min(max(_BLOCK_VALUES // k, 256), 16384))
+    block = min(block, max(n, 1))
+    a, b = _recurrence_tables(lmax)
+    buf = np.empty((k, block))
+    for start in range(0, n, block):
+        stop = min(n, start + block)
+        xyz = np.ascontiguousarray(d_flat[start:stop].T)  # (3, n_block)
+        norm = np.sqrt(np.einsum("ij,ij->j", xyz, xyz))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            xyz /= norm
+        y_blk = buf[:, : stop - start]
+        _sh_block(xyz[0], xyz[1], xyz[2], lmax, a, b, y_blk)
+        yield start, stop, y_blk
+
+
+def real_sh(directions: np.ndarray, lmax: int) -> np.ndarray:
+    """Evaluate all real SH ``Y_i`` (``i < (lmax+1)**2``) at directions.
+
+    Parameters
+    ----------
+    directions : numpy.ndarray
+        Shape ``(..., 3)`` unit vectors (Y-up frame).  Inputs are normalised
+        internally; zero-length vectors give NaN.
+    lmax : int
+        Maximum degree, ``>= 0``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(..., (lmax+1)**2)``, float64, C-contiguous; last axis is the
+        l-major flat index ``l*l + l + m``.
+
+    Raises
+    ------
+    ValueError
+        If the last axis of ``directions`` is not 3 or ``lmax < 0``.
+    TypeError
+        If ``lmax`` is not an integer.
+    """
+    d = _check_directions(directions)
+    lmax = _check_int(lmax, "lmax", 0)
+    batch = d.shape[:-1]
+    d_flat = d.reshape(-1, 3)
+    k = (lmax + 1) ** 2
+    out = np.empty((d_flat.shape[0], k))
+    for start, stop, y_blk in _sh_blocks(d_flat, lmax):
+        out[start:stop] = y_blk.T
+    return out.reshape(batch + (k,))
+
+
+def eval_sh(coeffs: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """Evaluate an SH expansion ``f(d) = sum_i c_i Y_i(d)``.
+
+    Parameters
+    ----------
+    coeffs : numpy.ndarray
+        Shape ``(n_coeffs,)`` or ``(n_coeffs, C)`` with ``n_coeffs = (lmax+1)**2``
+        (coefficient axis FIRST, as returned by `project_equirect`).
+    directions : numpy.ndarray
+        Shape ``(..., 3)`` unit vectors.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(...)`` or ``(..., C)``, float64.
+    """
+    c = np.asarray(coeffs, dtype=np.float64)
+    if c.ndim not in (1, 2):
+        raise ValueError(f"coeffs must have shape (n_coeffs,) or (n_coeffs, C), got shape {c.shape}")
+    lmax = _lmax_from_ncoeffs(c.shape[0], f"coeffs of shape {c.shape}")
+    d = _check_directions(directions)
+    batch = d.shape[:-1]
+    d_flat = d.reshape(-1, 3)
+    out = np.empty((d_flat.shape[0],) + c.shape[1:])
+    for start, stop, y_blk in _sh_blocks(d_flat, lmax):
+        out[start:stop] = y_blk.T @ c
+    return out.reshape(batch + c.shape[1:])
+
+
+# --------------------------------------------------------------------------
+# equirectangular grid
+# --------------------------------------------------------------------------
+def _check_grid(height: int, width: int) -> tuple[int, int]:
+    height = _check_int(height, "height", 2)
+    width = _check_int(width, "width", 1)
+    return height, width
+
+
+def _row_cos_sin(height: int) -> tuple[np.ndarray, np.ndarray]:
+    """cos/sin of theta_i = pi i / (H-1), exactly symmetric about the equator."""
+    i = np.arange(height)
+    k = np.minimum(i, height - 1 - i)
+    ang = np.pi * k / (height - 1)
+    sign = np.where(i <= (height - 1) - i, 1.0, -1.0)
+    return sign * np.cos(ang), np.sin(ang)
+
+
+def equirect_directions(height: int, width: int) -> np.ndarray:
+    """Pixel-centre directions of an equirectangular map (Mitsuba layout).
+
+    Parameters
+    ----------
+    height, width : int
+        Map size ``H >= 2``, ``W >= 1``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(H, W, 3)``; pixel ``(i, j)`` is at ``theta_i = pi i / (H-1)``,
+        ``phi_j = 2 pi (j + 0.5) / W``.  Row 0 is exactly ``(0, 1, 0)`` and row
+        ``H-1`` exactly ``(0, -1, 0)``.
+    """
+    height, width = _check_grid(height, width)
+    ct, st = _row_cos_sin(height)
+    phi = 2.0 * np.pi * (np.arange(width) + 0.5) / width
+    out = np.empty((height, width, 3))
+    out[..., 0] = st[:, None] * np.sin(phi)[None, :]
+    out[..., 1] = ct[:, None]
+    out[..., 2] = -st[:, None] * np.cos(phi)[None, :]
+    return out
+
+
+def equirect_solid_angles(height: int, width: int) -> np.ndarray:
+    """Solid angle of one pixel in each row of an equirectangular map.
+
+    Parameters
+    ----------
+    height, width : int
+        Map size ``H >= 2``, ``W >= 1``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(H,)`` in sr: ``2 pi / W * (cos a_i - cos b_i)`` with
+        ``[a_i, b_i] = [theta_i - dtheta/2, theta_i + dtheta/2]`` clipped to
+        ``[0, pi]``, ``dtheta = pi / (H-1)``.  ``W * sum`` equals ``4 pi``.
+    """
+    height, width = _check_grid(height, width)
+    # band edges theta_e = pi (e - 1/2) / (H - 1), e = 0..H, clipped to [0, pi];
+    # cos computed symmetrically so the edge list is exactly antisymmetric.
+    e = np.arange(height + 1)
+    twice = np.clip(2 * e - 1, 0, 2 * (height - 1))  # 2 (H-1) theta_e / pi
+    k = np.minimum(twice, 2 * (height - 1) - twice)
+    sign = np.where(twice <= 2 * (height - 1) - twice, 1.0, -1.0)
+    cos_edges = sign * np.cos(np.pi * k / (2.0 * (height - 1)))
+    return (2.0 * np.pi / width) * (cos_edges[:-1] - cos_edges[1:])
+
+
+def project_equirect(image: np.ndarray, lmax: int) -> np.ndarray:
+    """Project an equirectangular map onto real SH by quadrature.
+
+    ``c_i = sum_pixels Y_i(d_p) f(d_p) dOmega_p`` with the pixel directions of
+    `equirect_directions` and weights of `equirect_solid_angles`.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        Shape ``(H, W)`` or ``(H, W, C)`` (e.g. radiance), ``H >= 2``.
+    lmax : int
+        Maximum degree, ``>= 0``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(n_coeffs,)`` or ``(n_coeffs, C)``, float64 (coefficient axis
+        FIRST; transpose before `power_spectrum`).
+    """
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim not in (2, 3):
+        raise ValueError(f"image must have shape (H, W) or (H, W, C), got shape {img.shape}")
+    lmax = _check_int(lmax, "lmax", 0)
+    height, width = img.shape[:2]
+    if height < 2 or width < 1:
+        raise ValueError(f"image must have H >= 2 and W >= 1, got shape {img.shape}")
+    w = equirect_solid_angles(height, width)
+    weighted = (img * (w[:, None] if img.ndim == 2 else w[:, None, None])).reshape(
+        (height * width,) + img.shape[2:]
+    )
+    d_flat = equirect_directions(height, width).reshape(-1, 3)
+    k = (lmax + 1) ** 2
+    acc = np.zeros((k,) + img.shape[2:])
+    for start, stop, y_blk in _sh_blocks(d_flat, lmax):
+        acc += y_blk @ weighted[start:stop]
+    return acc
+
+
+# --------------------------------------------------------------------------
+# spectra
+# --------------------------------------------------------------------------
+def power_spectrum(coeffs: np.ndarray, lmax: int | None = None) -> np.ndarray:
+    """Per-degree power ``S(l) = sum_m c_lm**2``.
+
+    Parameters
+    ----------
+    coeffs : numpy.ndarray
+        Shape ``(..., n_coeffs)`` -- the coefficient axis is LAST here (unlike
+        `project_equirect` / `eval_sh`, whose ``(n_coeffs, C)`` output must be
+        transposed: ``power_spectrum(c.T)``).
+    lmax : int, optional
+        Degree up to which to compute.  Default: inferred from
+        ``n_coeffs = (lmax+1)**2``.  If given, only the first
+        ``(lmax+1)**2`` coefficients are used.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(..., lmax + 1)``, float64.
+    """
+    c = np.asarray(coeffs, dtype=np.float64)
+    if c.ndim < 1:
+        raise ValueError(f"coeffs must have shape (..., n_coeffs), got shape {c.shape}")
+    n = c.shape[-1]
+    if lmax is None:
+        lmax = _lmax_from_ncoeffs(n, f"coeffs of shape {c.shape} (last axis)")
+    else:
+        lmax = _check_int(lmax, "lmax", 0)
+        if (lmax + 1) ** 2 > n:
+            raise ValueError(
+                f"lmax={lmax} needs {(lmax + 1) ** 2} coefficients on the last axis, "
+                f"got shape {c.shape}"
+            )
+    k = (lmax + 1) ** 2
+    sq = c[..., :k] ** 2
+    starts = np.arange(lmax + 1) ** 2
+    return np.add.reduceat(sq, starts, axis=-1)
+
+
+# --------------------------------------------------------------------------
+# Fibonacci point sets
+# --------------------------------------------------------------------------
+_GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
+
+
+def _spiral(y: np.ndarray) -> np.ndarray:
+    k = np.arange(y.shape[0])
+    phi = _GOLDEN_ANGLE * k
+    r = np.sqrt(np.clip(1.0 - y * y, 0.0, None))
+    return np.stack([r * np.sin(phi), y, -r * np.cos(phi)], axis=-1)
+
+
+def fibonacci_sphere(n: int) -> np.ndarray:
+    """Nearly uniform points on the unit sphere (golden-angle spiral).
+
+    Parameters
+    ----------
+    n : int
+        Number of points, ``>= 1``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(n, 3)`` unit vectors; ``y_k = 1 - (2k + 1)/n`` (equal-area
+        latitude bands), azimuth advancing by the golden angle.
+    """
+    n = _check_int(n, "n", 1)
+    y = 1.0 - (2.0 * np.arange(n) + 1.0) / n
+    return _spiral(y)
+
+
+def fibonacci_hemisphere(n: int) -> np.ndarray:
+    """Nearly uniform points on the upper (+Y) unit hemisphere.
+
+    Parameters
+    ----------
+    n : int
+        Number of points, ``>= 1``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(n, 3)`` unit vectors with ``y_k = 1 - (k + 0.5)/n`` in
+        ``(0, 1)`` (equal-area bands, so ``y > 0`` and mean ``y = 1/2``).
+    """
+    n = _check_int(n, "n", 1)
+    y = 1.0 - (np.arange(n) + 0.5) / n
+    return _spiral(y)

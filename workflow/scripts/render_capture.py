@@ -1,0 +1,64 @@
+"""Rule render_capture: HDR views, coverage masks and cameras of one (object, env, split)."""
+
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from freqbrdf.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsics, mitsuba_to_world
+from freqbrdf.io import read_exr, write_exr, write_json, write_png
+from freqbrdf.logs import run_script
+from freqbrdf.mitsuba_setup import setup_mitsuba
+from freqbrdf.plots import contact_sheet
+from freqbrdf.render import capture_scene, mask_scene, principled_bsdf, render_views
+
+
+def main(smk, log):
+    mi = setup_mitsuba(threads=smk.threads)
+    p = smk.params
+    size = p.render["resolution"]
+    w2c = hemisphere_rig(p.views, p.render["camera_distance"], azimuth_deg=p.azimuth_deg)
+    cameras = Cameras(
+        K=np.repeat(intrinsics(size, size, p.render["fov_deg"])[None], len(w2c), axis=0),
+        world_to_camera=w2c,
+        width=size,
+        height=size,
+        names=tuple(f"{k:03d}" for k in range(len(w2c))),
+    )
+    to_world = np.stack([mitsuba_to_world(m) for m in w2c])
+    frame = dict(width=size, height=size, fov_x_deg=p.render["fov_deg"])
+
+    # Everything is written into a sibling temporary directory and moved into
+    # place at the end, so an interrupted render never looks complete.
+    out = Path(smk.output[0])
+    tmp = out.with_name(f".{out.name}.partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+
+    bsdf = principled_bsdf(
+        mi, read_exr(smk.input.base_color), read_exr(smk.input.roughness), read_exr(smk.input.metallic)
+    )
+    scene = capture_scene(
+        mi, smk.input.mesh, bsdf, read_exr(smk.input.envmap),
+        spp=p.render["spp"], max_depth=p.render["max_depth"], **frame,
+    )
+    start = time.perf_counter()
+    previews = []
+    for name, image in zip(cameras.names, render_views(mi, scene, to_world, seed=p.seed)):
+        write_exr(tmp / "images" / f"{name}.exr", image)  # raises, naming the view, on NaN/Inf
+        if len(previews) < 8:
+            previews.append(image)
+        log.info("view %s/%d rendered (%.1f s elapsed)", name, len(cameras), time.perf_counter() - start)
+
+    masks = mask_scene(mi, smk.input.mesh, spp=p.render["mask_spp"], **frame)
+    for name, coverage in zip(cameras.names, render_views(mi, masks, to_world, seed=p.seed)):
+        write_png(tmp / "masks" / f"{name}.png", coverage[..., 0])
+    log.info("masks rendered (%.1f s elapsed)", time.perf_counter() - start)
+
+    write_json(tmp / "cameras.json", cameras_to_json(cameras))
+    contact_sheet(tmp / "preview.png", previews)
+    shutil.rmtree(out, ignore_errors=True)
+    tmp.rename(out)
+
+
+run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
