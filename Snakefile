@@ -14,7 +14,9 @@ from freqbrdf.config import check_config
 min_version("9.0")
 
 
-configfile: "config/config.yaml"
+# The embedded default, found next to this file even when run with --directory;
+# --configfile and --config values are layered on top of it.
+configfile: Path(workflow.basedir) / "config" / "config.yaml"
 
 
 check_config(config, Path(workflow.basedir) / "config" / "schemas" / "config.schema.yaml")

@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.metadata
-import os
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,10 +10,8 @@ from scipy.optimize import linprog
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workflow"))
-
-from freqbrdf import meshes as M  # noqa: E402
-from freqbrdf.meshes import OBJECTS, Mesh, make_mesh, read_ply, write_ply  # noqa: E402
+from freqbrdf import meshes as M
+from freqbrdf.meshes import OBJECTS, Mesh, make_mesh, read_ply, write_ply
 
 GENUS = {"sphere": 0, "torus": 1, "die": 0, "vase": 0, "knot": 1}
 CHARTS = {"sphere": 1, "torus": 1, "die": 6, "vase": 1, "knot": 4}
@@ -335,12 +330,7 @@ def test_write_ply_replaces_existing_file(meshes: dict[str, Mesh], tmp_path: Pat
 # --------------------------------------------------------------------- Mitsuba
 
 
-def test_mitsuba_loads_ply_and_agrees_on_area_and_uv(meshes: dict[str, Mesh], tmp_path: Path) -> None:
-    llvm = [f.locate() for f in importlib.metadata.files("karellen-llvm-core") or [] if f.name == "libLLVM.so"]
-    if llvm:
-        os.environ.setdefault("DRJIT_LIBLLVM_PATH", str(llvm[0].resolve()))
-    mi = pytest.importorskip("mitsuba")
-    mi.set_variant("llvm_ad_rgb")
+def test_mitsuba_loads_ply_and_agrees_on_area_and_uv(mi, meshes: dict[str, Mesh], tmp_path: Path) -> None:
     for name, mesh in meshes.items():
         path = tmp_path / f"{name}.ply"
         write_ply(path, mesh)

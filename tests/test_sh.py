@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -11,9 +10,7 @@ import pytest
 from scipy.special import sph_harm_y
 from scipy.spatial.transform import Rotation
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workflow"))
-
-from freqbrdf import sh  # noqa: E402
+from freqbrdf import sh
 
 LMAX = 8
 K = (LMAX + 1) ** 2

@@ -18,6 +18,8 @@ Every map is scaled so its mean radiance over the sphere equals
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from .sh import equirect_directions, equirect_solid_angles, power_spectrum, project_equirect
@@ -189,6 +191,39 @@ def museum(height: int, seed: int, lamps: int = 9, lamp_radius_deg: float = 2.5,
         tint = np.array([1.0, 0.93, 0.8]) * rng.uniform(0.6, 1.0)
         env += lamp_radiance * soft_disc(dirs, centre, lamp_radius_deg * rng.uniform(0.8, 1.2), edge=0.2)[..., None] * tint
     return env
+
+
+def sunny(
+    height: int,
+    sky: Callable[[int, np.ndarray, float], np.ndarray],
+    sun_elevation_deg: float = 40.0,
+    sun_azimuth_deg: float = 60.0,
+    turbidity: float = 3.0,
+    ground_albedo: float = 0.25,
+    horizon_blur_deg: float = 2.0,
+) -> np.ndarray:
+    """Clear sky with a sun over a diffuse ground.
+
+    Parameters
+    ----------
+    height : int
+        Map height H (width 2H).
+    sky : callable
+        ``sky(height, sun_direction, turbidity) -> (H, 2H, 3)`` radiance of the
+        sky and sun, e.g. :func:`freqbrdf.render.sunsky` bound to Mitsuba.
+    sun_elevation_deg, sun_azimuth_deg : float
+        Sun position (azimuth 0 toward -Z, 90 toward +X).
+    turbidity : float
+        Atmospheric turbidity.
+    ground_albedo, horizon_blur_deg : float
+        See :func:`add_ground`.
+
+    Returns
+    -------
+    ndarray, shape (H, 2H, 3), float64
+    """
+    sun = direction_from_angles(sun_elevation_deg, sun_azimuth_deg)
+    return add_ground(sky(height, sun, turbidity), ground_albedo, horizon_blur_deg)
 
 
 def overcast(height: int, ground_albedo: float = 0.25, horizon_blur_deg: float = 12.0) -> np.ndarray:

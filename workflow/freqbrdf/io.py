@@ -205,3 +205,41 @@ def read_json(path: str | os.PathLike) -> Any:
         return json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: malformed JSON ({exc})") from None
+
+
+def read_svbrdf(base_color: str | os.PathLike, roughness: str | os.PathLike, metallic: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Read and check the three SVBRDF texture EXRs of one object.
+
+    Parameters
+    ----------
+    base_color, roughness, metallic : path-like
+        EXR files: RGB base colour, single-channel roughness and metallic.
+
+    Returns
+    -------
+    dict
+        ``base_color`` (H, W, 3), ``roughness`` (H, W), ``metallic`` (H, W), float32.
+
+    Raises
+    ------
+    ValueError
+        Naming the file whose channel count, size or value range is wrong.
+    """
+    paths = {"base_color": base_color, "roughness": roughness, "metallic": metallic}
+    textures = {}
+    for name, path in paths.items():
+        texture = read_exr(path)
+        channels = 1 if texture.ndim == 2 else texture.shape[2]
+        wanted = 3 if name == "base_color" else 1
+        if channels != wanted:
+            raise ValueError(f"{path}: {name} texture has {channels} channels, expected {wanted}")
+        if texture.min() < -1e-6 or texture.max() > 1.0 + 1e-6:
+            raise ValueError(f"{path}: {name} values span [{texture.min():.3g}, {texture.max():.3g}], expected [0, 1]")
+        textures[name] = texture
+    size = textures["base_color"].shape[:2]
+    for name in ("roughness", "metallic"):
+        if textures[name].shape[:2] != size:
+            raise ValueError(
+                f"{paths[name]}: {name} texture is {textures[name].shape[:2]}, but base_color is {size}"
+            )
+    return textures

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from freqbrdf.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsics, mitsuba_to_world
-from freqbrdf.io import read_exr, write_exr, write_json, write_png
+from freqbrdf.io import read_exr, read_svbrdf, write_exr, write_json, write_png
 from freqbrdf.logs import run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import contact_sheet
@@ -35,9 +35,18 @@ def main(smk, log):
     tmp = out.with_name(f".{out.name}.partial")
     shutil.rmtree(tmp, ignore_errors=True)
 
-    bsdf = principled_bsdf(
-        mi, read_exr(smk.input.base_color), read_exr(smk.input.roughness), read_exr(smk.input.metallic)
-    )
+    try:
+        _render_into(mi, smk, log, cameras, to_world, frame, tmp)
+        shutil.rmtree(out, ignore_errors=True)
+        tmp.rename(out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _render_into(mi, smk, log, cameras, to_world, frame, tmp):
+    p = smk.params
+    textures = read_svbrdf(smk.input.base_color, smk.input.roughness, smk.input.metallic)
+    bsdf = principled_bsdf(mi, **textures)
     scene = capture_scene(
         mi, smk.input.mesh, bsdf, read_exr(smk.input.envmap),
         spp=p.render["spp"], max_depth=p.render["max_depth"], **frame,
@@ -48,7 +57,7 @@ def main(smk, log):
         write_exr(tmp / "images" / f"{name}.exr", image)  # raises, naming the view, on NaN/Inf
         if len(previews) < 8:
             previews.append(image)
-        log.info("view %s/%d rendered (%.1f s elapsed)", name, len(cameras), time.perf_counter() - start)
+        log.info("view %s rendered, %d views in total (%.1f s elapsed)", name, len(cameras), time.perf_counter() - start)
 
     masks = mask_scene(mi, smk.input.mesh, spp=p.render["mask_spp"], **frame)
     for name, coverage in zip(cameras.names, render_views(mi, masks, to_world, seed=p.seed)):
@@ -57,8 +66,6 @@ def main(smk, log):
 
     write_json(tmp / "cameras.json", cameras_to_json(cameras))
     contact_sheet(tmp / "preview.png", previews)
-    shutil.rmtree(out, ignore_errors=True)
-    tmp.rename(out)
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)

@@ -1,0 +1,68 @@
+"""Configuration: the shipped presets validate; every mistake is one line naming the key."""
+
+import copy
+import subprocess
+import sys
+
+import pytest
+import yaml
+from snakemake.utils import update_config
+
+from freqbrdf.config import ConfigError, check_config, derived_seed
+
+
+@pytest.fixture(scope="module")
+def schema(repo):
+    return repo / "config" / "schemas" / "config.schema.yaml"
+
+
+@pytest.fixture()
+def default(repo):
+    return yaml.safe_load((repo / "config" / "config.yaml").read_text())
+
+
+@pytest.mark.parametrize("preset", ["paper.yaml", "tiny.yaml"])
+def test_shipped_configs_validate(repo, schema, default, preset):
+    check_config(copy.deepcopy(default), schema)
+    merged = copy.deepcopy(default)
+    update_config(merged, yaml.safe_load((repo / "config" / preset).read_text()))
+    check_config(merged, schema)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda c: c["render"].update(sppp=3), r"config key render: .*'sppp' was unexpected"),
+        (lambda c: c["render"].update(spp=0), r"config key render\.spp: 0 is less than the minimum of 1"),
+        (lambda c: c["envs"]["studio"].update(lamps=3), r"config key envs\.studio: .*'lamps' was unexpected"),
+        (lambda c: c["envs"]["sunny"].update(kind="sunset"), r"config key envs\.sunny\.kind: 'sunset' is not one of"),
+        (lambda c: c.update(objects=["teapot"]), r"config key objects\.0: 'teapot' is not one of"),
+        (lambda c: c.update(capture_envs=["beach"]), r"config key capture_envs: \['beach'\] not defined under envs"),
+        (lambda c: c["render"].update(fov_deg=10.0), r"config key render\.fov_deg: 10.0 degrees is too narrow"),
+        (lambda c: c.pop("seed"), r"'seed' is a required property"),
+    ],
+)
+def test_mistakes_give_one_line_naming_the_key(schema, default, edit, message):
+    edit(default)
+    with pytest.raises(ConfigError, match=message) as info:
+        check_config(default, schema)
+    assert "\n" not in str(info.value)
+
+
+def test_snakemake_stops_at_once_on_a_bad_key(repo, tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("render:\n  spp: -4\n")
+    run = subprocess.run(
+        [sys.executable, "-m", "snakemake", "-s", str(repo / "Snakefile"), "-d", str(tmp_path), "-n", "--configfile", str(bad)],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert run.returncode != 0
+    lines = [line for line in (run.stdout + run.stderr).splitlines() if "config key" in line]
+    assert lines == ["config key render.spp: -4 is less than the minimum of 1"]
+
+
+def test_derived_seeds_are_stable_and_distinct():
+    assert derived_seed(0, "object", "torus") == derived_seed(0, "object", "torus")
+    seeds = {derived_seed(s, "object", name) for s in (0, 1) for name in ("sphere", "torus", "die")}
+    assert len(seeds) == 6
+    assert all(0 <= s < 2**31 for s in seeds)

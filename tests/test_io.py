@@ -1,0 +1,95 @@
+"""File IO: exact round trips and one-line errors that name the file."""
+
+import numpy as np
+import pytest
+
+from freqbrdf.io import atomic_path, read_exr, read_json, read_png, tonemap, to_srgb, write_exr, write_json, write_png
+
+
+@pytest.mark.parametrize("shape", [(5, 7), (5, 7, 3), (5, 7, 4)])
+def test_exr_round_trip_is_exact(tmp_path, shape):
+    image = np.random.default_rng(0).uniform(0, 1e4, size=shape).astype(np.float32)
+    write_exr(tmp_path / "a.exr", image)
+    np.testing.assert_array_equal(read_exr(tmp_path / "a.exr"), image)
+
+
+def test_exr_errors_name_the_file(tmp_path):
+    with pytest.raises(FileNotFoundError, match="missing.exr"):
+        read_exr(tmp_path / "missing.exr")
+    (tmp_path / "corrupt.exr").write_bytes(b"not an exr at all")
+    with pytest.raises(ValueError, match="corrupt.exr.*not a readable OpenEXR"):
+        read_exr(tmp_path / "corrupt.exr")
+    with pytest.raises(ValueError, match="nan.exr.*refusing to write 1 NaN"):
+        write_exr(tmp_path / "nan.exr", np.array([[0.0, np.nan]]))
+    assert not (tmp_path / "nan.exr").exists()
+    with pytest.raises(ValueError, match=r"shape \(2, 2, 2\)"):
+        write_exr(tmp_path / "bad.exr", np.zeros((2, 2, 2)))
+
+
+def test_exr_with_nan_pixels_is_rejected_on_read_unless_allowed(tmp_path):
+    import OpenEXR
+
+    image = np.ones((4, 4, 3), np.float32)
+    image[1, 2, 0] = np.nan
+    image[3, 3, 1] = np.inf
+    with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION}, {"RGB": image}) as f:
+        f.write(str(tmp_path / "nan.exr"))
+    with pytest.raises(ValueError, match="nan.exr: 2 NaN/Inf"):
+        read_exr(tmp_path / "nan.exr")
+    assert np.isnan(read_exr(tmp_path / "nan.exr", allow_nonfinite=True)).sum() == 1
+
+
+def test_truncated_exr_is_reported(tmp_path):
+    write_exr(tmp_path / "full.exr", np.ones((64, 64, 3), np.float32))
+    data = (tmp_path / "full.exr").read_bytes()
+    (tmp_path / "cut.exr").write_bytes(data[: len(data) // 2])
+    with pytest.raises(ValueError, match="cut.exr"):
+        read_exr(tmp_path / "cut.exr")
+
+
+def test_atomic_path_leaves_nothing_behind_on_failure(tmp_path):
+    target = tmp_path / "sub" / "out.txt"
+    with pytest.raises(RuntimeError):
+        with atomic_path(target) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("killed")
+    assert not target.exists()
+    assert list((tmp_path / "sub").iterdir()) == []
+
+
+def test_png_and_json_round_trip(tmp_path):
+    grey = np.linspace(0, 1, 256).reshape(16, 16)
+    write_png(tmp_path / "g.png", grey)
+    np.testing.assert_array_equal(read_png(tmp_path / "g.png"), np.round(grey * 255).astype(np.uint8))
+    write_json(tmp_path / "c.json", {"a": [1, 2.5]})
+    assert read_json(tmp_path / "c.json") == {"a": [1, 2.5]}
+    (tmp_path / "bad.json").write_text("{")
+    with pytest.raises(ValueError, match="bad.json: malformed JSON"):
+        read_json(tmp_path / "bad.json")
+
+
+def test_srgb_curve_and_tonemap_known_values():
+    np.testing.assert_allclose(to_srgb(np.array([0.0, 0.0031308, 0.18, 1.0, 5.0])), [0.0, 0.04045, 0.46135, 1.0, 1.0], atol=1e-4)
+    np.testing.assert_allclose(tonemap(np.array([4.0])), 1.0)  # white point
+    assert tonemap(np.array([0.1]))[0] < tonemap(np.array([0.2]))[0] < 1.0
+
+
+def test_svbrdf_files_are_checked_naming_the_bad_file(tmp_path):
+    from freqbrdf.io import read_svbrdf
+
+    paths = {name: tmp_path / f"{name}.exr" for name in ("base_color", "roughness", "metallic")}
+    write_exr(paths["base_color"], np.full((8, 8, 3), 0.5))
+    write_exr(paths["roughness"], np.full((8, 8), 0.3))
+    write_exr(paths["metallic"], np.zeros((8, 8)))
+    textures = read_svbrdf(**paths)
+    assert textures["base_color"].shape == (8, 8, 3) and textures["roughness"].shape == (8, 8)
+
+    write_exr(paths["metallic"], np.zeros((4, 8)))
+    with pytest.raises(ValueError, match=r"metallic.exr: metallic texture is \(4, 8\), but base_color is \(8, 8\)"):
+        read_svbrdf(**paths)
+    write_exr(paths["metallic"], np.zeros((8, 8, 3)))
+    with pytest.raises(ValueError, match="metallic.exr: metallic texture has 3 channels, expected 1"):
+        read_svbrdf(**paths)
+    write_exr(paths["metallic"], np.full((8, 8), 1.5))
+    with pytest.raises(ValueError, match=r"metallic.exr: metallic values span \[1.5, 1.5\]"):
+        read_svbrdf(**paths)

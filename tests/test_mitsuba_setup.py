@@ -1,0 +1,39 @@
+"""LLVM discovery for Mitsuba's CPU backend."""
+
+from pathlib import Path
+
+import pytest
+
+from freqbrdf import mitsuba_setup
+from freqbrdf.mitsuba_setup import LLVMNotFoundError, find_llvm, llvm_major_version
+
+
+@pytest.mark.parametrize(
+    "name, major", [("libLLVM.so.23.1", 23), ("libLLVM-15.so", 15), ("libLLVM-17.so.1", 17), ("libLLVM.so", None)]
+)
+def test_version_from_file_name(name, major):
+    assert llvm_major_version(Path("/nonexistent") / name) == major
+
+
+def test_the_packaged_llvm_is_found_and_recent(monkeypatch):
+    monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
+    path = find_llvm()
+    assert path.is_file() and llvm_major_version(path) >= 17
+
+
+def test_an_old_or_missing_llvm_is_refused_with_a_fix(monkeypatch, tmp_path):
+    old = tmp_path / "libLLVM-15.so"
+    old.write_bytes(b"")
+    monkeypatch.setenv("DRJIT_LIBLLVM_PATH", str(old))
+    with pytest.raises(LLVMNotFoundError, match="LLVM 15.*karellen-llvm-core"):
+        find_llvm()
+    monkeypatch.setenv("DRJIT_LIBLLVM_PATH", str(tmp_path / "nope.so"))
+    with pytest.raises(LLVMNotFoundError, match="not a file"):
+        find_llvm()
+
+
+def test_missing_package_says_how_to_install(monkeypatch):
+    monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
+    monkeypatch.setattr(mitsuba_setup, "LLVM_PACKAGE", "no-such-package-freqbrdf")
+    with pytest.raises(LLVMNotFoundError, match="pip install"):
+        find_llvm()

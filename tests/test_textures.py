@@ -1,0 +1,62 @@
+"""Ground-truth SVBRDF textures: ranges, determinism and the variety the benchmark needs."""
+
+import numpy as np
+import pytest
+
+from freqbrdf.textures import svbrdf_textures
+
+
+@pytest.fixture(scope="module")
+def textures():
+    return svbrdf_textures(128, seed=7)
+
+
+def test_shapes_dtypes_and_unit_range(textures):
+    assert textures["base_color"].shape == (128, 128, 3)
+    assert textures["roughness"].shape == textures["metallic"].shape == (128, 128)
+    for texture in textures.values():
+        assert texture.dtype == np.float32
+        assert texture.min() >= 0.0 and texture.max() <= 1.0
+
+
+def test_deterministic_for_a_seed_and_different_across_seeds(textures):
+    again = svbrdf_textures(128, seed=7)
+    other = svbrdf_textures(128, seed=8)
+    for name in textures:
+        np.testing.assert_array_equal(textures[name], again[name])
+        assert np.abs(textures[name] - other[name]).mean() > 0.02
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_every_material_regime_is_present(seed):
+    t = svbrdf_textures(128, seed=seed)
+    metal, rough = t["metallic"], t["roughness"]
+    assert (metal < 0.05).mean() > 0.05 and (metal > 0.95).mean() > 0.05  # diffuse and metallic
+    assert (rough < 0.35).mean() > 0.05 and (rough > 0.5).mean() > 0.05  # smooth and rough
+    for regime in (metal > 0.95, metal < 0.05):
+        assert rough[regime].min() < 0.35 and rough[regime].max() > 0.45
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_transitions_are_both_sharp_and_smooth(seed):
+    metal = svbrdf_textures(256, seed=seed)["metallic"]
+    step = np.abs(np.diff(metal, axis=1))
+    assert step.max() > 0.9  # some edge goes from diffuse to metal within one texel
+    blended = (metal > 0.1) & (metal < 0.9)
+    assert blended.sum() > 100  # and some edges blend over several texels
+
+
+def test_textures_wrap_around_in_u_and_v():
+    # Sphere and torus atlases join u = 0 to u = 1: the texture must be continuous there.
+    t = svbrdf_textures(256, seed=3)["base_color"]
+    seam_u = np.abs(t[:, 0] - t[:, -1]).mean()
+    seam_v = np.abs(t[0] - t[-1]).mean()
+    typical = np.abs(np.diff(t, axis=1)).mean()
+    assert seam_u < 3 * typical and seam_v < 3 * typical
+
+
+def test_bad_arguments_name_the_value():
+    with pytest.raises(ValueError, match="resolution"):
+        svbrdf_textures(4, seed=0)
+    with pytest.raises(ValueError, match="cells"):
+        svbrdf_textures(64, seed=0, cells=2)
