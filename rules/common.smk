@@ -8,11 +8,13 @@ OBJECTS = list(config["objects"])
 ENVS = list(config["envs"])
 CAPTURE_ENVS = list(config["capture_envs"])
 SPLITS = ["train", "test"]
+POSES = config["poses"]["source"]
 
 wildcard_constraints:
     object="|".join(OBJECTS),
     env="|".join(ENVS),
     split="|".join(SPLITS),
+    poses="gt|colmap",
 
 
 LIBRARY = Path(workflow.basedir) / "workflow" / "freqbrdf"
@@ -44,4 +46,5 @@ def benchmark_outputs():
     outputs.append("results/envs/spectra.png")
     outputs += expand("results/captures/{object}/{env}/train", object=OBJECTS, env=CAPTURE_ENVS)
     outputs += expand("results/captures/{object}/{env}/test", object=OBJECTS, env=ENVS)
+    outputs += expand("results/observations/{object}/{env}/{poses}", object=OBJECTS, env=CAPTURE_ENVS, poses=POSES)
     return outputs

@@ -94,3 +94,17 @@ def test_a_corrupt_environment_fails_naming_the_file_and_leaves_no_output(repo, 
         assert not (capture_dir / "test").exists() and not (capture_dir / ".test.partial").exists()
     finally:
         env.write_bytes(good)
+
+
+def test_observations_follow_the_documented_layout(run):
+    obs = run / "results/observations/sphere/studio/gt"
+    meta = read_json(obs / "views.json")
+    texels = np.load(obs / "texels.npz")
+    n_tex, n_views = len(texels["texel"]), len(meta["views"])
+    assert n_views == 4 and n_tex == meta["texels"] > 0.9 * 32 * 32
+    assert np.load(obs / "radiance.npy").shape == (n_tex, n_views, 3)
+    weight = np.load(obs / "weight.npy")
+    assert weight.shape == (n_tex, n_views) and weight.dtype == np.float32
+    assert np.load(obs / "wo_local.npy").shape == np.load(obs / "incoming.npy").shape == (n_tex, n_views, 3)
+    assert meta["observed_pairs"] == int((weight > 0).sum()) > n_tex  # most texels seen, several views each
+    assert (obs / "coverage.png").is_file()

@@ -243,3 +243,47 @@ def read_svbrdf(base_color: str | os.PathLike, roughness: str | os.PathLike, met
                 f"{paths[name]}: {name} texture is {textures[name].shape[:2]}, but base_color is {size}"
             )
     return textures
+
+
+def read_views(capture_dir: str | os.PathLike, names: list[str] | tuple[str, ...], width: int, height: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Load the HDR views and coverage masks of a capture.
+
+    Parameters
+    ----------
+    capture_dir : path-like
+        Directory with ``images/{name}.exr`` and ``masks/{name}.png``.
+    names : sequence of str
+        Views to load, in order.
+    width, height : int
+        Expected image size (from the cameras).
+
+    Returns
+    -------
+    images : ndarray, shape (K, H, W, 3), float32
+        NaN/Inf pixels are kept (callers mask them).
+    coverage : ndarray, shape (K, H, W), float32 in [0, 1]
+    nonfinite : int
+        Number of NaN/Inf pixel values found.
+
+    Raises
+    ------
+    ValueError
+        Naming the file whose size or channel count is wrong.
+    """
+    capture_dir = Path(capture_dir)
+    images = np.empty((len(names), height, width, 3), np.float32)
+    coverage = np.empty((len(names), height, width), np.float32)
+    for k, name in enumerate(names):
+        path = capture_dir / "images" / f"{name}.exr"
+        image = read_exr(path, allow_nonfinite=True)
+        if image.ndim != 3 or image.shape[2] < 3 or image.shape[:2] != (height, width):
+            raise ValueError(f"{path}: image is {image.shape}, cameras say ({height}, {width}, 3)")
+        images[k] = image[..., :3]
+        mask_path = capture_dir / "masks" / f"{name}.png"
+        mask = read_png(mask_path)
+        if mask.ndim == 3:
+            mask = mask[..., 0]
+        if mask.shape != (height, width):
+            raise ValueError(f"{mask_path}: mask is {mask.shape}, cameras say ({height}, {width})")
+        coverage[k] = mask / 255.0
+    return images, coverage, int(np.count_nonzero(~np.isfinite(images)))

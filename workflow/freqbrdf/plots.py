@@ -103,3 +103,31 @@ def texture_preview(path: str | os.PathLike, texture: np.ndarray, srgb: bool) ->
     from .io import write_png
 
     write_png(path, to_srgb(texture) if srgb else np.clip(texture, 0.0, 1.0))
+
+
+def coverage_figure(path: str | os.PathLike, resolution: int, texel: np.ndarray, views_per_texel: np.ndarray, title: str) -> None:
+    """How many views observe each texel, drawn in UV space.
+
+    Parameters
+    ----------
+    resolution : int
+        Atlas size R.
+    texel : ndarray, shape (T,)
+        Flat texel indices.
+    views_per_texel : ndarray, shape (T,)
+        Number of views observing each texel.
+    title : str
+        Figure title.
+    """
+    plt = _pyplot()
+    image = np.full(resolution * resolution, np.nan)
+    image[texel] = views_per_texel
+    fig, ax = plt.subplots(figsize=(5.2, 4.4))
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
+    shown = ax.imshow(image.reshape(resolution, resolution), cmap=cmap, vmin=0, interpolation="nearest",
+                      extent=(0, 1, 1, 0))
+    ax.set_xlabel("u")
+    ax.set_ylabel("v")
+    ax.set_title(title)
+    fig.colorbar(shown, ax=ax, label="views observing the texel (grey: outside the atlas)")
+    _save(fig, path)

@@ -284,3 +284,4 @@ def sunsky(mi: ModuleType, height: int, sun_direction: np.ndarray, turbidity: fl
         "to_world": mi.ScalarTransform4f().rotate(axis=[1.0, 0.0, 0.0], angle=-90.0),
     }
     return bake_emitter(mi, emitter, height, hotspot=sun)
+

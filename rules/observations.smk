@@ -1,0 +1,33 @@
+def pose_dir(wildcards):
+    """Directory whose cameras.json holds the poses of a training capture:
+    the capture itself (gt: the renderer's cameras) or the SfM result (colmap)."""
+    if wildcards.poses == "gt":
+        return f"results/captures/{wildcards.object}/{wildcards.env}/train"
+    return f"results/poses/{wildcards.object}/{wildcards.env}/colmap"
+
+
+rule extract_observations:
+    """Per-texel observations of one training capture: radiance, view and mirror
+    directions in the texel's frame, and the band-limited incoming light."""
+    input:
+        capture="results/captures/{object}/{env}/train",
+        poses=pose_dir,
+        mesh="results/objects/{object}/mesh.ply",
+        envmap="results/envs/{env}.exr",
+        code=library("observations", "cameras", "meshes", "sh", "raycast", "mitsuba_setup", "plots"),
+    output:
+        directory("results/observations/{object}/{env}/{poses}"),
+    params:
+        resolution=config["textures"]["resolution"],
+        settings=config["observations"],
+    threads: 2
+    resources:
+        mem_mb=4000,
+    log:
+        "results/logs/extract_observations/{object}_{env}_{poses}.log",
+    benchmark:
+        "results/benchmarks/extract_observations/{object}_{env}_{poses}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/extract_observations.py"

@@ -1,0 +1,444 @@
+"""Per-texel observations: what each texel of the UV atlas shows in each view.
+
+Layout of one capture's observations (``T`` valid texels, ``K`` views, all
+float32 unless stated; written by the ``extract_observations`` rule):
+
+- ``texels.npz``: ``resolution`` (R), ``texel`` (T,) int64 flat index
+  ``i * R + j`` into the R x R atlas, ``position`` (T, 3) world, ``normal``,
+  ``tangent``, ``bitangent`` (T, 3) the local frame (n is the shading normal),
+  ``dilated`` (T,) bool (texel centre just outside every chart, filled from the
+  nearest triangle so bilinear lookups across UV seams see real values).
+- ``radiance.npy`` (T, K, 3): outgoing radiance B_k(p), bilinear from the HDR
+  view; 0 where not observed.
+- ``weight.npy`` (T, K): cos(theta_o) where observed, else 0 (the sample
+  weight s_j of METHOD.md section 3).
+- ``wo_local.npy`` (T, K, 3): unit direction toward the camera in the local
+  frame (x = tangent, y = bitangent, z = normal). The mirror direction in the
+  same frame is ``(-x, -y, z)``.
+- ``incoming.npy`` (T, K, 3): band-limited environment radiance L(w_r) seen
+  along the world mirror direction.
+- ``views.json``: view names in K order, the band-limit parameter and counts.
+
+A (texel, view) pair is observed when the texel projects inside the image,
+faces the camera, is not occluded (a ray cast toward the camera), lies where
+the object mask covers the whole bilinear footprint, every pixel of that
+footprint sees the texel's own surface (not an occluding part of the object
+in front of it), and every pixel read is finite.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .cameras import Cameras
+from .meshes import Mesh
+from .sh import equirect_directions, project_equirect, real_sh, sh_degrees
+
+Occluded = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class SurfaceTexels:
+    """Surface points of the valid texels of a UV atlas.
+
+    Attributes
+    ----------
+    resolution : int
+        Atlas size R (R x R texels).
+    texel : ndarray, shape (T,), int64
+        Flat index ``i * R + j`` (row i at v = (i + 0.5)/R, column j at u = (j + 0.5)/R).
+    position, normal, tangent, bitangent : ndarray, shape (T, 3)
+        World position and orthonormal local frame.
+    dilated : ndarray, shape (T,), bool
+        Texels outside every chart, filled from the nearest triangle.
+    """
+
+    resolution: int
+    texel: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
+    tangent: np.ndarray
+    bitangent: np.ndarray
+    dilated: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.texel)
+
+    def subset(self, index: slice | np.ndarray) -> SurfaceTexels:
+        """The texels selected by ``index`` (a slice or index array)."""
+        return SurfaceTexels(
+            self.resolution, self.texel[index], self.position[index], self.normal[index],
+            self.tangent[index], self.bitangent[index], self.dilated[index],
+        )
+
+
+def tangent_frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal tangent and bitangent for unit normals, continuous except near n_z = -1.
+
+    Uses the branchless construction of Duff et al. (2017, "Building an
+    orthonormal basis, revisited").
+
+    Parameters
+    ----------
+    normal : ndarray, shape (..., 3)
+        Unit normals.
+
+    Returns
+    -------
+    tangent, bitangent : ndarray, shape (..., 3)
+        With ``tangent x bitangent = normal``.
+    """
+    x, y, z = normal[..., 0], normal[..., 1], normal[..., 2]
+    sign = np.where(z >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    tangent = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x], axis=-1)
+    bitangent = np.stack([b, sign + y * y * a, -y], axis=-1)
+    return tangent, bitangent
+
+
+def _closest_on_triangle(p: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentrics of the closest point of each 2D triangle to p, and the distance.
+
+    p : (N, 2); tri : (N, 3, 2). Returns bary (N, 3) and distance (N,).
+    """
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    v0, v1, v2 = b - a, c - a, p - a
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    safe = np.where(np.abs(den) > 1e-20, den, 1.0)
+    l1 = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / safe
+    l2 = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / safe
+    bary = np.stack([1.0 - l1 - l2, l1, l2], axis=-1)
+    inside = (bary >= -1e-9).all(axis=1) & (np.abs(den) > 1e-20)
+    dist = np.where(inside, 0.0, np.inf)
+    best = bary.copy()
+    # Outside: the closest point lies on one of the three edges.
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        e = tri[:, j] - tri[:, i]
+        t = np.clip(np.einsum("nk,nk->n", p - tri[:, i], e) / np.maximum(np.einsum("nk,nk->n", e, e), 1e-30), 0.0, 1.0)
+        d = np.linalg.norm(tri[:, i] + t[:, None] * e - p, axis=1)
+        better = ~inside & (d < dist)
+        edge_bary = np.zeros_like(bary)
+        edge_bary[:, i] = 1.0 - t
+        edge_bary[:, j] = t
+        best[better] = edge_bary[better]
+        dist = np.where(better, d, dist)
+    return best, dist
+
+
+def rasterise_uv(mesh: Mesh, resolution: int, dilate_texels: float = 1.0, chunk_faces: int = 8192) -> SurfaceTexels:
+    """Surface point and frame of every texel the mesh's UV atlas covers.
+
+    A texel is valid when its centre lies in a UV triangle, or within
+    ``dilate_texels`` (in texel units) of one: those border texels take the
+    nearest point of the nearest triangle, so texels cut by a chart border are
+    not lost.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Triangle mesh with per-vertex normals and uvs.
+    resolution : int
+        Atlas size R.
+    dilate_texels : float
+        Dilation distance in texels (0 disables it).
+    chunk_faces : int
+        Faces processed at once (bounds memory).
+
+    Returns
+    -------
+    SurfaceTexels
+    """
+    if resolution < 2:
+        raise ValueError(f"resolution must be >= 2, got {resolution}")
+    R = int(resolution)
+    uv = mesh.uvs * R - 0.5  # texel-index coordinates: texel (i, j) centre at (x=j, y=i)
+    best_dist = np.full(R * R, np.inf)
+    best_face = np.full(R * R, -1, dtype=np.int64)
+    best_bary = np.zeros((R * R, 3))
+    for start in range(0, len(mesh.faces), chunk_faces):
+        faces = np.arange(start, min(start + chunk_faces, len(mesh.faces)))
+        tri = uv[mesh.faces[faces]]  # (F, 3, 2)
+        lo = np.clip(np.floor(tri.min(axis=1) - dilate_texels), 0, R - 1).astype(np.int64)
+        hi = np.clip(np.ceil(tri.max(axis=1) + dilate_texels), 0, R - 1).astype(np.int64)
+        nx, ny = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
+        counts = nx * ny
+        owner = np.repeat(np.arange(len(faces)), counts)
+        offset = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+        px = lo[owner, 0] + offset % nx[owner]
+        py = lo[owner, 1] + offset // nx[owner]
+        bary, dist = _closest_on_triangle(np.stack([px, py], axis=1).astype(np.float64), tri[owner])
+        keep = dist <= dilate_texels
+        flat = (py * R + px)[keep]
+        dist, bary, face = dist[keep], bary[keep], faces[owner[keep]]
+        # Per texel keep the candidate nearest its triangle (0 when inside one).
+        order = np.lexsort((dist, flat))
+        flat, dist, bary, face = flat[order], dist[order], bary[order], face[order]
+        first = np.ones(len(flat), dtype=bool)
+        first[1:] = flat[1:] != flat[:-1]
+        flat, dist, bary, face = flat[first], dist[first], bary[first], face[first]
+        better = dist < best_dist[flat]
+        best_dist[flat[better]] = dist[better]
+        best_face[flat[better]] = face[better]
+        best_bary[flat[better]] = bary[better]
+    texel = np.nonzero(best_face >= 0)[0]
+    corners = mesh.faces[best_face[texel]]  # (T, 3)
+    bary = best_bary[texel][..., None]
+    position = (mesh.vertices[corners] * bary).sum(axis=1)
+    normal = (mesh.normals[corners] * bary).sum(axis=1)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    tangent, bitangent = tangent_frame(normal)
+    return SurfaceTexels(R, texel, position, normal, tangent, bitangent, best_dist[texel] > 0.0)
+
+
+def band_limit_parameter(n_views: int, rule: str) -> float:
+    """Band-limit width a' from the number of views (METHOD.md section 3).
+
+    Parameters
+    ----------
+    n_views : int
+        Number of views K.
+    rule : {"paper", "reference"}
+        ``paper``: a' = K^(-1/2); ``reference`` (authors' code): 1 / floor(sqrt(K)).
+    """
+    if n_views < 1:
+        raise ValueError(f"n_views must be >= 1, got {n_views}")
+    if rule == "paper":
+        return float(n_views) ** -0.5
+    if rule == "reference":
+        return 1.0 / np.floor(np.sqrt(n_views))
+    raise ValueError(f"band-limit rule must be 'paper' or 'reference', got {rule!r}")
+
+
+def band_limited_envmap(envmap: np.ndarray, a_prime: float, lmax: int | None = None) -> np.ndarray:
+    """Environment map low-passed by the SH filter exp(-(a' l)^2).
+
+    Parameters
+    ----------
+    envmap : ndarray, shape (H, W, 3)
+        Equirectangular radiance.
+    a_prime : float
+        Filter width (> 0); roughness below it cannot be recovered from K views.
+    lmax : int, optional
+        Highest degree kept; default ceil(3.5 / a'), where the filter is below 5e-6.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), float32
+        The filtered map on the same grid.
+    """
+    if not a_prime > 0:
+        raise ValueError(f"a_prime must be > 0, got {a_prime}")
+    lmax = int(np.ceil(3.5 / a_prime)) if lmax is None else int(lmax)
+    coeffs = project_equirect(envmap, lmax) * np.exp(-((a_prime * sh_degrees(lmax)) ** 2))[:, None]
+    h, w = envmap.shape[:2]
+    dirs = equirect_directions(h, w).reshape(-1, 3)
+    out = np.empty((h * w, envmap.shape[2]))
+    for start in range(0, len(dirs), 16384):
+        out[start : start + 16384] = real_sh(dirs[start : start + 16384], lmax) @ coeffs
+    return out.reshape(h, w, -1).astype(np.float32)
+
+
+def sample_equirect(envmap: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of an equirect map along world directions, as Mitsuba's envmap does.
+
+    Parameters
+    ----------
+    envmap : ndarray, shape (H, W, C)
+    dirs : ndarray, shape (..., 3)
+        Unit directions.
+
+    Returns
+    -------
+    ndarray, shape (..., C)
+    """
+    h, w = envmap.shape[:2]
+    theta = np.arccos(np.clip(dirs[..., 1], -1.0, 1.0))
+    phi = np.mod(np.arctan2(dirs[..., 0], -dirs[..., 2]), 2.0 * np.pi)
+    row = theta / np.pi * (h - 1)
+    col = phi / (2.0 * np.pi) * w - 0.5
+    r0 = np.clip(np.floor(row).astype(np.int64), 0, h - 2)
+    c0 = np.floor(col).astype(np.int64)
+    fr = (row - r0)[..., None]
+    fc = (col - c0)[..., None]
+    c0, c1 = np.mod(c0, w), np.mod(c0 + 1, w)
+    top = envmap[r0, c0] * (1.0 - fc) + envmap[r0, c1] * fc
+    bottom = envmap[r0 + 1, c0] * (1.0 - fc) + envmap[r0 + 1, c1] * fc
+    return top * (1.0 - fr) + bottom * fr
+
+
+def bilinear_views(images: np.ndarray, view: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear samples of several images at continuous pixel coordinates.
+
+    Parameters
+    ----------
+    images : ndarray, shape (K, H, W, C) or (K, H, W)
+    view : ndarray, shape (P,), int
+        Which image each sample reads.
+    x, y : ndarray, shape (P,)
+        Pixel coordinates (pixel centres at +0.5), inside [0.5, W - 0.5] x [0.5, H - 0.5].
+
+    Returns
+    -------
+    values : ndarray, shape (P, C) or (P,)
+    finite : ndarray, shape (P,), bool
+        False where any of the four pixels read is NaN or infinite.
+    """
+    _, h, w = images.shape[:3]
+    fx, fy = x - 0.5, y - 0.5
+    x0 = np.clip(np.floor(fx).astype(np.int64), 0, w - 2)
+    y0 = np.clip(np.floor(fy).astype(np.int64), 0, h - 2)
+    tx, ty = fx - x0, fy - y0
+    if images.ndim == 4:
+        tx, ty = tx[:, None], ty[:, None]
+    taps = [images[view, y0, x0], images[view, y0, x0 + 1], images[view, y0 + 1, x0], images[view, y0 + 1, x0 + 1]]
+    finite = np.logical_and.reduce([np.isfinite(t).reshape(len(view), -1).all(axis=1) for t in taps])
+    taps = [np.where(np.isfinite(t), t, 0.0) for t in taps]
+    values = (taps[0] * (1 - tx) + taps[1] * tx) * (1 - ty) + (taps[2] * (1 - tx) + taps[3] * tx) * ty
+    return values, finite
+
+
+def edge_free_distances(distances: np.ndarray, jump: float = 0.1) -> np.ndarray:
+    """Mark pixels next to a depth discontinuity as unusable.
+
+    A pixel's value is the mean radiance over its area, so a pixel whose
+    neighbour sees a surface much nearer or farther (an occluding edge inside
+    the object, or the silhouette) may mix two surfaces even when its centre
+    does not.
+
+    Parameters
+    ----------
+    distances : ndarray, shape (K, H, W)
+        Pixel-centre distances (``inf`` for background).
+    jump : float
+        Distance change between neighbouring pixels that counts as an edge
+        (object units; the object's radius is 1).
+
+    Returns
+    -------
+    ndarray, shape (K, H, W), float32
+        ``distances`` with NaN at pixels within one pixel of an edge or of the background.
+    """
+    d = distances.astype(np.float64)
+    padded = np.pad(d, ((0, 0), (1, 1), (1, 1)), mode="edge")
+    h, w = d.shape[1:]
+    edge = ~np.isfinite(d)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            neighbour = padded[:, 1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
+            with np.errstate(invalid="ignore"):
+                edge |= ~np.isfinite(neighbour) | (np.abs(neighbour - d) > jump)
+    return np.where(edge, np.nan, d).astype(np.float32)
+
+
+def _footprint_distances(distances: np.ndarray, view: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Values of the four pixels a bilinear read at (x, y) uses, shape (P, 4)."""
+    _, h, w = distances.shape
+    x0 = np.clip(np.floor(x - 0.5).astype(np.int64), 0, w - 2)
+    y0 = np.clip(np.floor(y - 0.5).astype(np.int64), 0, h - 2)
+    return np.stack([distances[view, y0, x0], distances[view, y0, x0 + 1],
+                     distances[view, y0 + 1, x0], distances[view, y0 + 1, x0 + 1]], axis=1)
+
+
+def observe(
+    texels: SurfaceTexels,
+    cameras: Cameras,
+    images: np.ndarray,
+    coverage: np.ndarray,
+    incoming_map: np.ndarray,
+    occluded: Occluded,
+    *,
+    distances: np.ndarray | None = None,
+    min_coverage: float = 0.99,
+    ray_offset: float = 1e-3,
+    footprint_slack: float = 2.0,
+) -> dict[str, np.ndarray]:
+    """Observations of a set of texels in every view (one chunk of the capture).
+
+    Parameters
+    ----------
+    texels : SurfaceTexels
+        T texels.
+    cameras : Cameras
+        K views.
+    images : ndarray, shape (K, H, W, 3)
+        Linear HDR views (NaN/Inf allowed: such pixels are never observed).
+    coverage : ndarray, shape (K, H, W)
+        Object mask in [0, 1].
+    incoming_map : ndarray, shape (He, We, 3)
+        Band-limited environment map sampled along mirror directions.
+    occluded : callable
+        ``occluded(origins (P, 3), directions (P, 3), distances (P,)) -> (P,) bool``,
+        e.g. :func:`freqbrdf.render.occlusion_test` bound to the mesh.
+    distances : ndarray, shape (K, H, W), optional
+        Distance from each camera to the surface seen at each pixel centre
+        (:func:`freqbrdf.render.distance_maps`), NaN at pixels near an edge
+        (:func:`edge_free_distances`). When given, a pair is kept only if all
+        four pixels it reads see the texel's own surface away from edges, so
+        samples that straddle an occlusion edge inside the object (where the
+        mask is 1 on both sides) are dropped.
+    min_coverage : float
+        Smallest bilinear mask value accepted (excludes silhouette pixels that
+        mix object and background).
+    ray_offset : float
+        Offset of visibility rays along the normal, in object units, so a
+        texel does not occlude itself.
+    footprint_slack : float
+        Depth tolerance of the footprint test in pixel footprints, divided by
+        cos(theta_o) (a surface seen at a grazing angle changes depth fast).
+
+    Returns
+    -------
+    dict
+        ``radiance`` (T, K, 3), ``weight`` (T, K), ``wo_local`` (T, K, 3),
+        ``incoming`` (T, K, 3), float32, and ``nonfinite`` (int): pairs dropped
+        because a pixel read was NaN or infinite.
+    """
+    n_tex, n_views = len(texels), len(cameras)
+    p, n = texels.position, texels.normal
+    centres = cameras.centres
+    to_cam = centres[None, :, :] - p[:, None, :]  # (T, K, 3)
+    dist = np.linalg.norm(to_cam, axis=-1)
+    wo = to_cam / dist[..., None]
+    cos_o = np.einsum("tkc,tc->tk", wo, n)
+
+    R = cameras.world_to_camera[:, :3, :3]
+    t = cameras.world_to_camera[:, :3, 3]
+    cam = np.einsum("kij,tj->tki", R, p) + t[None]
+    pix = np.einsum("kij,tkj->tki", cameras.K, cam)
+    depth = cam[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x, y = pix[..., 0] / pix[..., 2], pix[..., 1] / pix[..., 2]
+    inside = (depth > 0) & (x >= 0.5) & (x <= cameras.width - 0.5) & (y >= 0.5) & (y <= cameras.height - 0.5)
+    candidate = inside & (cos_o > 0.0)
+
+    ti, ki = np.nonzero(candidate)
+    origins = p[ti] + ray_offset * n[ti]
+    blocked = occluded(origins, wo[ti, ki], np.linalg.norm(centres[ki] - origins, axis=1))
+    ti, ki = ti[~blocked], ki[~blocked]
+    mask, _ = bilinear_views(coverage, ki, x[ti, ki], y[ti, ki])
+    keep = mask >= min_coverage
+    ti, ki = ti[keep], ki[keep]
+    if distances is not None:
+        d_texel = dist[ti, ki]
+        pixel_size = d_texel / cameras.K[ki, 0, 0]  # world size of one pixel at the texel
+        slack = ray_offset + footprint_slack * pixel_size / np.maximum(cos_o[ti, ki], 0.1)
+        gap = np.abs(_footprint_distances(distances, ki, x[ti, ki], y[ti, ki]) - d_texel[:, None])
+        keep = (gap <= slack[:, None]).all(axis=1)  # NaN (edge pixels) fails
+        ti, ki = ti[keep], ki[keep]
+    values, finite = bilinear_views(images, ki, x[ti, ki], y[ti, ki])
+    nonfinite = int((~finite).sum())
+    ti, ki, values = ti[finite], ki[finite], values[finite]
+
+    radiance = np.zeros((n_tex, n_views, 3), np.float32)
+    radiance[ti, ki] = values
+    weight = np.zeros((n_tex, n_views), np.float32)
+    weight[ti, ki] = cos_o[ti, ki]
+    frame = np.stack([texels.tangent, texels.bitangent, n], axis=1)  # (T, 3, 3), rows = local axes
+    wo_local = np.einsum("tij,tkj->tki", frame, wo).astype(np.float32)
+    wr = 2.0 * cos_o[..., None] * n[:, None, :] - wo
+    incoming = sample_equirect(incoming_map, wr).astype(np.float32)
+    return {"radiance": radiance, "weight": weight, "wo_local": wo_local, "incoming": incoming, "nonfinite": nonfinite}

@@ -1,0 +1,106 @@
+"""Rule extract_observations: per-texel radiance, directions and incoming light of one capture."""
+
+import functools
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from freqbrdf.cameras import cameras_from_json
+from freqbrdf.io import read_exr, read_json, read_views, write_json
+from freqbrdf.logs import run_script
+from freqbrdf.meshes import read_ply
+from freqbrdf.mitsuba_setup import setup_mitsuba
+from freqbrdf.observations import (
+    band_limit_parameter,
+    band_limited_envmap,
+    edge_free_distances,
+    observe,
+    rasterise_uv,
+)
+from freqbrdf.plots import coverage_figure
+from freqbrdf.raycast import distance_maps, mesh_scene, occlusion_test
+
+ARRAYS = {"radiance": 3, "weight": 0, "wo_local": 3, "incoming": 3}
+
+
+def main(smk, log):
+    mi = setup_mitsuba(threads=smk.threads)
+    settings = smk.params.settings
+    out = Path(smk.output[0])
+    tmp = out.with_name(f".{out.name}.partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    try:
+        _extract(mi, smk, log, settings, tmp)
+        shutil.rmtree(out, ignore_errors=True)
+        tmp.rename(out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _extract(mi, smk, log, settings, tmp):
+    start = time.perf_counter()
+    cameras_file = Path(smk.input.poses) / "cameras.json"
+    cameras = cameras_from_json(read_json(cameras_file), source=cameras_file)
+    images, coverage, nonfinite_pixels = read_views(smk.input.capture, cameras.names, cameras.width, cameras.height)
+    if nonfinite_pixels:
+        log.warning("%d NaN/Inf pixel values in the views: masked, never observed", nonfinite_pixels)
+    texels = rasterise_uv(read_ply(smk.input.mesh), smk.params.resolution, settings["dilate_texels"])
+    log.info("%d valid texels (%d by dilation), %d views, loaded in %.1f s",
+             len(texels), texels.dilated.sum(), len(cameras), time.perf_counter() - start)
+
+    a_prime = band_limit_parameter(len(cameras), settings["band_limit"])
+    incoming_map = band_limited_envmap(read_exr(smk.input.envmap), a_prime)
+    log.info("environment band-limited with a' = %.4f (%s rule)", a_prime, settings["band_limit"])
+
+    n_tex, n_views = len(texels), len(cameras)
+    arrays = {
+        name: np.lib.format.open_memmap(tmp / f"{name}.npy", mode="w+", dtype=np.float32,
+                                        shape=(n_tex, n_views, depth) if depth else (n_tex, n_views))
+        for name, depth in ARRAYS.items()
+    }
+    scene = mesh_scene(mi, smk.input.mesh)
+    occluded = functools.partial(occlusion_test, mi, scene)
+    distances = edge_free_distances(
+        distance_maps(mi, scene, cameras.K, cameras.world_to_camera, cameras.width, cameras.height),
+        jump=settings["edge_jump"],
+    )
+    nonfinite_pairs = 0
+    chunk = settings["chunk_texels"]
+    for s in range(0, n_tex, chunk):
+        obs = observe(texels.subset(slice(s, s + chunk)), cameras, images, coverage, incoming_map, occluded,
+                      distances=distances, min_coverage=settings["min_coverage"],
+                      ray_offset=settings["ray_offset"], footprint_slack=settings["footprint_slack"])
+        for name in ARRAYS:
+            arrays[name][s : s + chunk] = obs[name]
+        nonfinite_pairs += obs["nonfinite"]
+        log.info("texels %d-%d of %d observed (%.1f s elapsed)", s, min(s + chunk, n_tex), n_tex,
+                 time.perf_counter() - start)
+    views_per_texel = (np.asarray(arrays["weight"]) > 0).sum(axis=1)
+    for array in arrays.values():
+        array.flush()
+    del arrays
+
+    np.savez(tmp / "texels.npz", resolution=texels.resolution, texel=texels.texel, position=texels.position,
+             normal=texels.normal, tangent=texels.tangent, bitangent=texels.bitangent, dilated=texels.dilated)
+    write_json(tmp / "views.json", {
+        "format": "freqbrdf-observations/1",
+        "layout": "see freqbrdf.observations module docstring; arrays are (texel, view[, channel])",
+        "views": list(cameras.names),
+        "poses": smk.wildcards.poses,
+        "band_limit": {"rule": settings["band_limit"], "a_prime": a_prime},
+        "texels": n_tex,
+        "observed_pairs": int(views_per_texel.sum()),
+        "unobserved_texels": int((views_per_texel == 0).sum()),
+        "nonfinite_pixels": nonfinite_pixels,
+        "nonfinite_pairs_dropped": nonfinite_pairs,
+    })
+    coverage_figure(tmp / "coverage.png", texels.resolution, texels.texel, views_per_texel,
+                    f"{smk.wildcards.object} / {smk.wildcards.env} ({smk.wildcards.poses} poses)")
+    log.info("mean %.1f views per texel, %d texels unobserved; %.1f s in all",
+             views_per_texel.mean(), (views_per_texel == 0).sum(), time.perf_counter() - start)
+
+
+run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
