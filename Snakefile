@@ -28,6 +28,7 @@ include: "rules/common.smk"
 include: "rules/objects.smk"
 include: "rules/envs.smk"
 include: "rules/captures.smk"
+include: "rules/exchange.smk"
 include: "rules/observations.smk"
 
 

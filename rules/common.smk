@@ -4,15 +4,21 @@ from pathlib import Path
 
 from freqbrdf.config import derived_seed
 
-OBJECTS = list(config["objects"])
+SYNTHETIC_OBJECTS = list(config["objects"])
+REAL_CAPTURES = config["real_captures"]  # name -> {dir, env}: captures imported from disk
+OBJECTS = SYNTHETIC_OBJECTS + list(REAL_CAPTURES)
 ENVS = list(config["envs"])
 CAPTURE_ENVS = list(config["capture_envs"])
 SPLITS = ["train", "test"]
 POSES = config["poses"]["source"]
+# Every (object, env) pair that has a training capture.
+CAPTURES = [(o, e) for o in SYNTHETIC_OBJECTS for e in CAPTURE_ENVS] + [
+    (name, capture["env"]) for name, capture in REAL_CAPTURES.items()
+]
 
 wildcard_constraints:
     object="|".join(OBJECTS),
-    env="|".join(ENVS),
+    env="|".join(ENVS + [capture["env"] for capture in REAL_CAPTURES.values()]),
     split="|".join(SPLITS),
     poses="gt|colmap",
 
@@ -37,14 +43,33 @@ def object_files(name):
     }
 
 
+def capture_dir(wildcards, split):
+    """Native capture directory of a split: rendered, or imported from disk."""
+    if wildcards.object in REAL_CAPTURES:
+        return f"results/imports/{wildcards.object}/{split}"
+    return f"results/captures/{wildcards.object}/{wildcards.env}/{split}"
+
+
+def mesh_file(wildcards):
+    if wildcards.object in REAL_CAPTURES:
+        return f"results/imports/{wildcards.object}/mesh.ply"
+    return f"results/objects/{wildcards.object}/mesh.ply"
+
+
+def envmap_file(wildcards):
+    if wildcards.object in REAL_CAPTURES:
+        return f"results/imports/{wildcards.object}/envmap.exr"
+    return f"results/envs/{wildcards.env}.exr"
+
+
 def benchmark_outputs():
     """Every final output of the stages defined so far."""
     outputs = []
-    for name in OBJECTS:
+    for name in SYNTHETIC_OBJECTS:
         outputs += list(object_files(name).values())
     outputs += expand("results/envs/{env}_spectrum.png", env=ENVS)
     outputs.append("results/envs/spectra.png")
-    outputs += expand("results/captures/{object}/{env}/train", object=OBJECTS, env=CAPTURE_ENVS)
-    outputs += expand("results/captures/{object}/{env}/test", object=OBJECTS, env=ENVS)
-    outputs += expand("results/observations/{object}/{env}/{poses}", object=OBJECTS, env=CAPTURE_ENVS, poses=POSES)
+    outputs += expand("results/captures/{object}/{env}/train", object=SYNTHETIC_OBJECTS, env=CAPTURE_ENVS)
+    outputs += expand("results/captures/{object}/{env}/test", object=SYNTHETIC_OBJECTS, env=ENVS)
+    outputs += [f"results/observations/{o}/{e}/{POSES}" for o, e in CAPTURES]
     return outputs

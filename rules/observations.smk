@@ -2,7 +2,7 @@ def pose_dir(wildcards):
     """Directory whose cameras.json holds the poses of a training capture:
     the capture itself (gt: the renderer's cameras) or the SfM result (colmap)."""
     if wildcards.poses == "gt":
-        return f"results/captures/{wildcards.object}/{wildcards.env}/train"
+        return capture_dir(wildcards, "train")
     return f"results/poses/{wildcards.object}/{wildcards.env}/colmap"
 
 
@@ -10,10 +10,10 @@ rule extract_observations:
     """Per-texel observations of one training capture: radiance, view and mirror
     directions in the texel's frame, and the band-limited incoming light."""
     input:
-        capture="results/captures/{object}/{env}/train",
+        capture=lambda wildcards: capture_dir(wildcards, "train"),
         poses=pose_dir,
-        mesh="results/objects/{object}/mesh.ply",
-        envmap="results/envs/{env}.exr",
+        mesh=mesh_file,
+        envmap=envmap_file,
         code=library("observations", "cameras", "meshes", "sh", "raycast", "mitsuba_setup", "plots"),
     output:
         directory("results/observations/{object}/{env}/{poses}"),

@@ -109,3 +109,14 @@ def test_observations_follow_the_documented_layout(run):
     # tiny 32 px views: the object spans ~12 px, so edge-free footprints are few
     assert meta["observed_pairs"] == int((weight > 0).sum()) > n_tex // 4
     assert (obs / "coverage.png").is_file()
+
+
+def test_exported_and_reimported_capture_gives_the_same_observations(run):
+    # tiny.yaml exports sphere/studio to the NeRF/Stanford-ORB layout and imports it back as sphere_copy.
+    export = run / "results/exports/sphere/studio"
+    assert (export / "transforms_train.json").is_file() and (export / "train_mask/0000.png").is_file()
+    native = run / "results/observations/sphere/studio/gt"
+    imported = run / "results/observations/sphere_copy/studio_copy/gt"
+    for name in ("radiance", "weight", "wo_local", "incoming"):
+        np.testing.assert_allclose(np.load(imported / f"{name}.npy"), np.load(native / f"{name}.npy"), rtol=1e-5, atol=1e-6)
+    np.testing.assert_array_equal(np.load(imported / "texels.npz")["texel"], np.load(native / "texels.npz")["texel"])

@@ -54,6 +54,13 @@ def check_config(config: dict[str, Any], schema: str | Path) -> None:
         raise ConfigError(
             f"config key capture_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
         )
+    from .meshes import OBJECTS as CATALOGUE
+
+    for name, capture in config["real_captures"].items():
+        if name in CATALOGUE:
+            raise ConfigError(f"config key real_captures.{name}: the name is taken by a synthetic object")
+        if capture["env"] in config["envs"]:
+            raise ConfigError(f"config key real_captures.{name}.env: {capture['env']!r} is taken by a synthetic environment")
     render = config["render"]
     half_span = math.degrees(math.asin(1.0 / render["camera_distance"]))
     if half_span >= render["fov_deg"] / 2.0:

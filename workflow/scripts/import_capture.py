@@ -1,0 +1,16 @@
+"""Rule import_capture: a NeRF-Blender / Stanford-ORB capture converted to the native layout."""
+
+from pathlib import Path
+
+from freqbrdf.capture_io import import_capture
+from freqbrdf.logs import run_script
+
+
+def main(smk, log):
+    # Snakemake removes every output of a failed job, so a half import never survives.
+    counts = import_capture(Path(smk.input.source), {"train": Path(smk.output.train), "test": Path(smk.output.test)},
+                            Path(smk.output.mesh), Path(smk.output.envmap))
+    log.info("imported %s: %s views", smk.input.source, counts)
+
+
+run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
