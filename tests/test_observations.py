@@ -226,3 +226,21 @@ def test_distance_maps_match_mitsubas_hit_points(mi, meshes):
     # (up to curvature and the noise of 64 samples on slanted surfaces)
     gap = np.abs(np.linalg.norm(hits - centre, axis=-1)[clean] - dist[clean])
     assert np.median(gap) < 1e-3 and gap.max() < 0.02
+
+
+def test_a_chunk_that_no_view_sees_gives_empty_observations(mi, meshes):
+    mesh, ply = meshes["sphere"]
+    texels = rasterise_uv(mesh, 64)
+    # every camera is above the horizon; from 4 units away none sees below y = -0.99
+    below = texels.subset(np.nonzero(texels.position[:, 1] < -0.99)[0])
+    cams = _cameras(hemisphere_rig(4, 4.0))
+    images = np.ones((4, SIZE, SIZE, 3), np.float32)
+    occluded = functools.partial(occlusion_test, mi, mesh_scene(mi, ply))
+    obs = observe(below, cams, images, np.ones((4, SIZE, SIZE), np.float32), np.ones((8, 16, 3), np.float32), occluded)
+    assert len(below) > 10 and obs["radiance"].shape == (len(below), 4, 3)
+    assert (obs["weight"] == 0).all() and obs["nonfinite"] == 0
+
+
+def test_bilinear_views_on_no_samples():
+    values, finite = bilinear_views(np.ones((2, 4, 4, 3)), np.zeros(0, int), np.zeros(0), np.zeros(0))
+    assert values.shape == (0, 3) and finite.shape == (0,)

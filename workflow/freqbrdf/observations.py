@@ -295,7 +295,7 @@ def bilinear_views(images: np.ndarray, view: np.ndarray, x: np.ndarray, y: np.nd
     if images.ndim == 4:
         tx, ty = tx[:, None], ty[:, None]
     taps = [images[view, y0, x0], images[view, y0, x0 + 1], images[view, y0 + 1, x0], images[view, y0 + 1, x0 + 1]]
-    finite = np.logical_and.reduce([np.isfinite(t).reshape(len(view), -1).all(axis=1) for t in taps])
+    finite = np.logical_and.reduce([np.isfinite(t) if t.ndim == 1 else np.isfinite(t).all(axis=1) for t in taps])
     taps = [np.where(np.isfinite(t), t, 0.0) for t in taps]
     values = (taps[0] * (1 - tx) + taps[1] * tx) * (1 - ty) + (taps[2] * (1 - tx) + taps[3] * tx) * ty
     return values, finite
