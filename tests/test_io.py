@@ -93,3 +93,18 @@ def test_svbrdf_files_are_checked_naming_the_bad_file(tmp_path):
     write_exr(paths["metallic"], np.full((8, 8), 1.5))
     with pytest.raises(ValueError, match=r"metallic.exr: metallic values span \[1.5, 1.5\]"):
         read_svbrdf(**paths)
+
+
+def test_atomic_directory_replaces_only_on_success(tmp_path):
+    from freqbrdf.io import atomic_directory
+
+    target = tmp_path / "capture"
+    with atomic_directory(target) as tmp:
+        (tmp / "a.txt").write_text("1")
+    assert (target / "a.txt").read_text() == "1"
+    with pytest.raises(RuntimeError):
+        with atomic_directory(target) as tmp:
+            (tmp / "b.txt").write_text("2")
+            raise RuntimeError("interrupted")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["capture"]  # no partial directory left
+    assert [p.name for p in target.iterdir()] == ["a.txt"]  # the old complete output is untouched

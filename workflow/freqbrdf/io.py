@@ -39,6 +39,27 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         tmp_path.unlink(missing_ok=True)
 
 
+@contextlib.contextmanager
+def atomic_directory(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield an empty sibling directory of ``path`` that replaces ``path`` on success.
+
+    Whatever was being written is removed on an exception, so an interrupted
+    job never leaves a directory that looks complete.
+    """
+    import shutil
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    try:
+        yield tmp
+        shutil.rmtree(path, ignore_errors=True)
+        tmp.rename(path)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 def write_exr(path: str | os.PathLike, image: np.ndarray) -> None:
     """Write a float32 OpenEXR image (ZIP compression).
 

@@ -1,14 +1,13 @@
 """Rule extract_observations: per-texel radiance, directions and incoming light of one capture."""
 
 import functools
-import shutil
 import time
 from pathlib import Path
 
 import numpy as np
 
 from freqbrdf.cameras import cameras_from_json
-from freqbrdf.io import read_exr, read_json, read_views, write_json
+from freqbrdf.io import atomic_directory, read_exr, read_json, read_views, write_json
 from freqbrdf.logs import run_script
 from freqbrdf.meshes import read_ply
 from freqbrdf.mitsuba_setup import setup_mitsuba
@@ -28,16 +27,8 @@ ARRAYS = {"radiance": 3, "weight": 0, "wo_local": 3, "incoming": 3}
 def main(smk, log):
     mi = setup_mitsuba(threads=smk.threads)
     settings = smk.params.settings
-    out = Path(smk.output[0])
-    tmp = out.with_name(f".{out.name}.partial")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    try:
+    with atomic_directory(smk.output[0]) as tmp:
         _extract(mi, smk, log, settings, tmp)
-        shutil.rmtree(out, ignore_errors=True)
-        tmp.rename(out)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _extract(mi, smk, log, settings, tmp):

@@ -1,13 +1,11 @@
 """Rule render_capture: HDR views, coverage masks and cameras of one (object, env, split)."""
 
-import shutil
 import time
-from pathlib import Path
 
 import numpy as np
 
 from freqbrdf.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsics, mitsuba_to_world
-from freqbrdf.io import read_exr, read_svbrdf, write_exr, write_json, write_png
+from freqbrdf.io import atomic_directory, read_exr, read_svbrdf, write_exr, write_json, write_png
 from freqbrdf.logs import run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import contact_sheet
@@ -29,18 +27,8 @@ def main(smk, log):
     to_world = np.stack([mitsuba_to_world(m) for m in w2c])
     frame = dict(width=size, height=size, fov_x_deg=p.render["fov_deg"])
 
-    # Everything is written into a sibling temporary directory and moved into
-    # place at the end, so an interrupted render never looks complete.
-    out = Path(smk.output[0])
-    tmp = out.with_name(f".{out.name}.partial")
-    shutil.rmtree(tmp, ignore_errors=True)
-
-    try:
+    with atomic_directory(smk.output[0]) as tmp:
         _render_into(mi, smk, log, cameras, to_world, frame, tmp)
-        shutil.rmtree(out, ignore_errors=True)
-        tmp.rename(out)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _render_into(mi, smk, log, cameras, to_world, frame, tmp):
