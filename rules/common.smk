@@ -62,6 +62,14 @@ def envmap_file(wildcards):
     return f"results/envs/{wildcards.env}.exr"
 
 
+def pose_dir(wildcards):
+    """Directory whose cameras.json holds the poses of a training capture:
+    the capture itself (gt: the renderer's cameras) or the SfM result (colmap)."""
+    if wildcards.poses == "gt":
+        return capture_dir(wildcards, "train")
+    return f"results/poses/{wildcards.object}/{wildcards.env}/colmap"
+
+
 def benchmark_outputs():
     """Every final output of the stages defined so far."""
     outputs = []

@@ -1,11 +1,3 @@
-def pose_dir(wildcards):
-    """Directory whose cameras.json holds the poses of a training capture:
-    the capture itself (gt: the renderer's cameras) or the SfM result (colmap)."""
-    if wildcards.poses == "gt":
-        return capture_dir(wildcards, "train")
-    return f"results/poses/{wildcards.object}/{wildcards.env}/colmap"
-
-
 rule extract_observations:
     """Per-texel observations of one training capture: radiance, view and mirror
     directions in the texel's frame, and the band-limited incoming light."""
