@@ -8,7 +8,8 @@ The stage turns the per-texel observations (``radiance`` B, ``weight``,
 2. their power spectra (`spectra`),
 3. the spectrum-only estimate of the specular lobe (K_s, alpha) on a grid and
    the normalised entropy of its likelihood (`spectrum_search`),
-4. the diffuse albedo from degree 0 (`diffuse_albedo`) and a mapping to the
+4. the irradiance (`irradiance_at_normals`, `irradiance_from_coeffs`), the
+   diffuse albedo from degree 0 (`diffuse_albedo`) and a mapping to the
    principled parameters (`principled_from_lobes`).
 
 Parametrisation
@@ -44,9 +45,9 @@ Then
 
 Dividing by the power at degrees 1..lmax only (excluding l = 0) was rejected:
 it inflates the faint directional part of a nearly constant light to unit
-power, so a smooth light (a broad lobe over an ambient term) comes out as
-certain as a point light (entropy 0.12 instead of 0.68 on the paper's 10 x 10
-grid at lmax 8). Where the light has no power at l >= 1 (more than
+power, so a smooth light (a broad lobe over an ambient term, power at l <= 2
+only) comes out more certain than a point light (entropy 0.13 instead of 0.69
+on the paper's 10 x 10 grid at lmax 8; point light 0.29 either way). Where the light has no power at l >= 1 (more than
 ``min_relative_power`` of ``P_L``), e.g. a constant or zero light, nothing
 about (K_s, alpha) is identifiable: the channel is flagged and its entropy is
 exactly 1.
@@ -84,6 +85,7 @@ __all__ = [
     "spectrum_search",
     "clamped_cosine_sh",
     "irradiance_from_coeffs",
+    "irradiance_at_normals",
     "diffuse_albedo",
     "lobes_from_principled",
     "principled_from_lobes",
@@ -179,7 +181,7 @@ def observed_texels(weight: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------
 # regularised SH fitting
 # --------------------------------------------------------------------------
-def regulariser_diagonal(lmax: int, regulariser: str) -> np.ndarray:
+def regulariser_diagonal(lmax: int, regulariser: str, penalise_dc: bool = True) -> np.ndarray:
     """Diagonal of the regulariser matrix W.
 
     Parameters
@@ -188,6 +190,8 @@ def regulariser_diagonal(lmax: int, regulariser: str) -> np.ndarray:
         Maximum degree.
     regulariser : {"exp", "constant", "none"}
         ``exp``: ``W_ii = e^l`` (paper); ``constant``: 1; ``none``: 0.
+    penalise_dc : bool
+        False sets ``W_00 = 0`` (see `fit_sh`).
 
     Returns
     -------
@@ -198,10 +202,14 @@ def regulariser_diagonal(lmax: int, regulariser: str) -> np.ndarray:
     _check_choice(regulariser, "regulariser", REGULARISERS)
     degrees = sh_degrees(lmax).astype(np.float64)
     if regulariser == "exp":
-        return np.exp(degrees)
-    if regulariser == "constant":
-        return np.ones_like(degrees)
-    return np.zeros_like(degrees)
+        w = np.exp(degrees)
+    elif regulariser == "constant":
+        w = np.ones_like(degrees)
+    else:
+        w = np.zeros_like(degrees)
+    if not penalise_dc:
+        w[0] = 0.0
+    return w
 
 
 def _fit_chunk(
@@ -215,18 +223,8 @@ def _fit_chunk(
     f = np.where(valid[..., None], f, 0.0)
     w = np.where(valid, w, 0.0)
     y = real_sh(d, lmax)  # (t, K, n)
-    empty = ~valid.any(axis=1)
     if solver == "dual":
-        # Push-through identity: with Z = S^1/2 Y and g = S^1/2 f,
-        # (Z^T Z + lam W)^-1 Z^T g = W^-1 Z^T (Z W^-1 Z^T + lam I)^-1 g,
-        # a K x K instead of an n x n system per texel.
-        sw = np.sqrt(w)[..., None]
-        z = y * sw
-        zw = z / reg  # Z W^-1
-        gram = zw @ z.transpose(0, 2, 1)  # (t, K, K)
-        gram[:, np.arange(gram.shape[1]), np.arange(gram.shape[1])] += lam
-        beta = np.linalg.solve(gram, f * sw)  # (t, K, C)
-        return zw.transpose(0, 2, 1) @ beta
+        return _dual_solve(y, f, w, reg, lam)
     yw_t = (y * w[..., None]).transpose(0, 2, 1)  # (t, n, K)
     a = yw_t @ y  # (t, n, n)
     rhs = yw_t @ f  # (t, n, C)
@@ -237,10 +235,49 @@ def _fit_chunk(
         diag += _NONE_RIDGE * diag.mean(axis=1, keepdims=True)
     else:
         diag += lam * reg
+    empty = ~valid.any(axis=1)
     if empty.any():
         a[empty] = np.eye(a.shape[1])
         rhs[empty] = 0.0
     return np.linalg.solve(a, rhs)
+
+
+def _dual_solve(y: np.ndarray, f: np.ndarray, w: np.ndarray, reg: np.ndarray, lam: float) -> np.ndarray:
+    """K x K form of the regularised fit of one chunk; see `fit_sh`.
+
+    Push-through identity: with ``Z = S^1/2 Y`` and ``g = S^1/2 f``,
+    ``(Z^T Z + lam W)^-1 Z^T g = W^-1 Z^T (Z W^-1 Z^T + lam I)^-1 g``. An
+    unpenalised DC (``W_00 = 0``) is eliminated exactly: for given other
+    coefficients it is the weighted mean of the residual, so they solve the
+    same problem projected by ``P = I - q q^T`` (``q`` the unit DC column of Z).
+    """
+    sw = np.sqrt(w)[..., None]
+    z = y * sw  # (t, K, n)
+    g = f * sw  # (t, K, C)
+    diag = np.arange(z.shape[1])
+    if reg[0] > 0.0:
+        zw = z / reg  # Z W^-1
+        gram = zw @ z.transpose(0, 2, 1)  # (t, K, K)
+        gram[:, diag, diag] += lam
+        return zw.transpose(0, 2, 1) @ np.linalg.solve(gram, g)
+    z0 = z[..., 0]  # (t, K)
+    norm = np.sqrt(np.einsum("tk,tk->t", z0, z0))
+    q = z0 / np.where(norm > 0, norm, 1.0)[:, None]  # 0 for texels without samples
+    zac = z[..., 1:]
+    zw = zac / reg[1:]
+    gram = zw @ zac.transpose(0, 2, 1)
+    gq = np.einsum("tij,tj->ti", gram, q)
+    qgq = np.einsum("ti,ti->t", q, gq)
+    # P G P = G - q (Gq)^T - (Gq) q^T + (q^T G q) q q^T
+    gram -= q[:, :, None] * gq[:, None, :] + gq[:, :, None] * q[:, None, :]
+    gram += qgq[:, None, None] * (q[:, :, None] * q[:, None, :])
+    gram[:, diag, diag] += lam
+    pg = g - q[..., None] * np.einsum("tk,tkc->tc", q, g)[:, None, :]
+    beta = np.linalg.solve(gram, pg)  # orthogonal to q, so P beta = beta
+    c_ac = zw.transpose(0, 2, 1) @ beta  # (t, n - 1, C)
+    residual = g - zac @ c_ac
+    c0 = np.einsum("tk,tkc->tc", q, residual) / np.where(norm > 0, norm, 1.0)[:, None]
+    return np.concatenate([c0[:, None, :], c_ac], axis=1)
 
 
 def fit_sh(
@@ -253,6 +290,7 @@ def fit_sh(
     chunk: int | None = None,
     solver: str = "auto",
     workers: int = 1,
+    penalise_dc: bool = True,
 ) -> np.ndarray:
     """Per-texel weighted, regularised least-squares SH fit.
 
@@ -264,6 +302,15 @@ def fit_sh(
     systems (fewer samples than coefficients, or a hemisphere only) return a
     near minimum-norm solution instead of blowing up.
 
+    ``penalise_dc=False`` sets ``W_00 = 0`` (not in the paper): the constant
+    then costs nothing, so constant data are fitted exactly by a constant.
+    With the paper's ``W_00 = 1`` and fewer samples than coefficients, the
+    smoothest interpolant of constant data is NOT constant (its DC is 0.67
+    sqrt(4 pi) at the median texel of the 24-view sphere/studio capture), so
+    a diffuse texel's constant radiance leaks into degrees >= 1, where the
+    spectrum search reads it as specular reflection (median K_s of the
+    dielectric texels 0.75 instead of 0.125 without the DC penalty).
+
     For ``exp`` and ``constant`` the same solution is also
     ``W^-1 Z^T (Z W^-1 Z^T + lam I)^-1 g`` with ``Z = S^1/2 Y``, ``g = S^1/2 f``
     (push-through identity), a K x K system per texel: cheaper when there are
@@ -271,7 +318,8 @@ def fit_sh(
 
     Texels with no sample of positive weight get zero coefficients. Samples
     of zero weight are ignored entirely (their directions and values may be
-    anything, even NaN). Fit B and L of the same texels in ONE call by
+    anything, even NaN); samples of positive weight need finite values and
+    finite, non-zero directions (normalised internally). Fit B and L of the same texels in ONE call by
     concatenating their channels: they share directions and weights, hence
     the normal matrix, and the cost is almost that of one fit.
 
@@ -295,7 +343,13 @@ def fit_sh(
         matrix near 32 MB.
     solver : {"auto", "primal", "dual"}
         ``primal``: the n x n normal equations; ``dual``: the K x K form (not
-        for ``none``); ``auto``: dual when allowed and ``K < n``. Both give the same coefficients up to rounding.
+        for ``none``); ``auto``: dual when allowed and ``K < n``. Both give
+        the same coefficients up to rounding.
+    workers : int
+        Threads solving chunks concurrently (numpy releases the GIL in the
+        batched products and solves; 2 threads run about 1.7x faster).
+    penalise_dc : bool
+        Regularise degree 0 as well (paper); see above.
 
     Returns
     -------
@@ -318,6 +372,18 @@ def fit_sh(
     if not np.all(np.isfinite(w64)) or (w64 < 0).any():
         bad = w64[~(np.isfinite(w64) & (w64 >= 0))][0]
         raise ValueError(f"weights must be finite and >= 0, got {bad!r}")
+    used = w64 > 0
+    bad_value = used & ~np.isfinite(f).all(axis=2)
+    if bad_value.any():
+        t, k = np.argwhere(bad_value)[0]
+        raise ValueError(f"values must be finite where weights > 0, got {f[t, k]!r} at texel {t}, sample {k}")
+    norms = np.linalg.norm(d, axis=2)
+    bad_dir = used & ~(np.isfinite(norms) & (norms > 0))
+    if bad_dir.any():
+        t, k = np.argwhere(bad_dir)[0]
+        raise ValueError(
+            f"directions must be finite and non-zero where weights > 0, got {d[t, k]!r} at texel {t}, sample {k}"
+        )
     n_tex, n_obs = w.shape
     n = n_coeffs(lmax)
     if chunk is None:
@@ -333,7 +399,7 @@ def fit_sh(
         method = "dual"
     else:
         method = "primal"
-    reg = regulariser_diagonal(lmax, regulariser)
+    reg = regulariser_diagonal(lmax, regulariser, bool(penalise_dc))
     workers = _check_int(workers, "workers", 1)
     out = np.zeros((n_tex, n, f.shape[2]))
 
@@ -360,13 +426,10 @@ def fit_sh(
     return out
 
 
-def _hemisphere_points(n: int, lower: bool) -> np.ndarray:
-    """Fibonacci points on the local upper (+z) or lower (-z) hemisphere, (n, 3)."""
+def _lower_hemisphere_points(n: int) -> np.ndarray:
+    """Fibonacci points on the local lower (-z) hemisphere, (n, 3)."""
     p = fibonacci_hemisphere(n)  # about +Y
-    # proper rotations taking +Y to +z, resp. -z
-    if lower:
-        return np.stack([p[:, 0], p[:, 2], -p[:, 1]], axis=-1)
-    return np.stack([p[:, 0], -p[:, 2], p[:, 1]], axis=-1)
+    return np.stack([p[:, 0], p[:, 2], -p[:, 1]], axis=-1)  # rotation taking +Y to -z
 
 
 def zero_pad_lower_hemisphere(
@@ -398,7 +461,7 @@ def zero_pad_lower_hemisphere(
     n_pad = _check_int(n_pad, "n_pad", 1)
     pad_weight = _check_positive(pad_weight, "pad_weight")
     n_tex = d.shape[0]
-    pad = np.broadcast_to(_hemisphere_points(n_pad, lower=True), (n_tex, n_pad, 3))
+    pad = np.broadcast_to(_lower_hemisphere_points(n_pad), (n_tex, n_pad, 3))
     return (
         np.concatenate([d, pad], axis=1),
         np.concatenate([f, np.zeros((n_tex, n_pad, f.shape[2]))], axis=1),
@@ -500,7 +563,9 @@ def _from_rows(a: np.ndarray, n_tex: int) -> np.ndarray:
     return a.reshape(n_tex, -1, a.shape[1]).transpose(0, 2, 1)
 
 
-def _normalise_rows(sb: np.ndarray, sl: np.ndarray, min_relative_power: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _normalise_rows(
+    sb: np.ndarray, sl: np.ndarray, min_relative_power: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`normalised_spectra` on (N, lmax+1) rows (one texel and channel per row)."""
     total = sl.sum(axis=1)
     varying = total - sl[:, 0]
@@ -608,15 +673,19 @@ def _entropy_rows(d: np.ndarray, sigma: float, d_min: np.ndarray | None = None) 
     """
     if d_min is None:
         d_min = d.min(axis=-1)
-    # x = log p + log z <= 0; float32 is ample once the minimum is subtracted
-    x = (d_min[..., None] - d).astype(np.float32)
+    # x = log p + log z <= 0; float32 is ample once the minimum is subtracted.
+    # Clipping at -1e4 (p < e^-10000, i.e. 0) keeps huge D from becoming -inf,
+    # whose product with p = 0 would be NaN.
+    with np.errstate(over="ignore"):
+        x = (d_min[..., None] - d).astype(np.float32)
     x *= np.float32(0.5 / sigma**2)
+    np.maximum(x, np.float32(-1e4), out=x)
     e = np.exp(x)
     z = e.sum(axis=-1).astype(np.float64)
     # sum p log p = sum p x - log z, with p = e / z and log p = x - log z
     ex = np.einsum("...g,...g->...", e, x).astype(np.float64)
     h = (np.log(z) - ex / z) / np.log(d.shape[-1])
-    return np.clip(h, 0.0, 1.0)
+    return np.where(np.isfinite(h), np.clip(h, 0.0, 1.0), 1.0)
 
 
 def grid_entropy(objective: np.ndarray, sigma: float = 1e-2) -> np.ndarray:
@@ -693,6 +762,10 @@ class SpectrumSearch:
         ``(T,)`` bool: no view observes the texel.
     objective : numpy.ndarray or None
         ``(T, n_ks, n_alpha, C)`` normalised D if requested, else None.
+
+    Where a channel is not identifiable (or the texel unobserved) its D is 0
+    everywhere and its estimates are the first grid point: meaningless, see
+    the flags.
     """
 
     ks_index: np.ndarray
@@ -840,98 +913,162 @@ def spectrum_search(
 # --------------------------------------------------------------------------
 # degree 0: irradiance and diffuse albedo
 # --------------------------------------------------------------------------
+def _clamped_cosine_gains(lmax: int) -> np.ndarray:
+    """``2 pi g_l`` with ``g_l = int_0^1 t P_l(t) dt`` for l = 0..lmax, shape (lmax+1,).
+
+    Funk-Hecke: the clamped cosine about ``n`` has SH coefficients
+    ``2 pi g_l Y_lm(n)`` (``g_0 = 1/2``, ``g_1 = 1/3``, 0 for odd ``l > 1``).
+    ``t P_l(t)`` is a polynomial, so Gauss-Legendre quadrature is exact.
+    """
+    x, w = np.polynomial.legendre.leggauss(lmax // 2 + 2)  # exact up to degree lmax + 3
+    t, w = 0.5 * (x + 1.0), 0.5 * w  # nodes on [0, 1]
+    g = np.array([w @ (t * np.polynomial.legendre.Legendre.basis(l)(t)) for l in range(lmax + 1)])
+    return 2.0 * np.pi * g
+
+
+def _check_normals(normal: np.ndarray, name: str) -> np.ndarray:
+    n = np.asarray(normal, dtype=np.float64)
+    if n.ndim not in (1, 2) or n.shape[-1] != 3:
+        raise ValueError(f"{name} must have shape (3,) or (T, 3), got shape {n.shape}")
+    norm = np.linalg.norm(n, axis=-1, keepdims=True)
+    if not (np.all(np.isfinite(norm)) and np.all(norm > 0)):
+        raise ValueError(f"{name} must be non-zero finite vectors, got {n!r}")
+    return n / norm
+
+
 def clamped_cosine_sh(lmax: int, normal: np.ndarray = _LOCAL_NORMAL) -> np.ndarray:
     """SH coefficients of ``max(n . w, 0)``, the irradiance kernel.
-
-    ``a_lm = 2 pi g_l Y_lm(n)`` with ``g_l = int_0^1 t P_l(t) dt`` (Funk-Hecke;
-    ``g_0 = 1/2``, ``g_1 = 1/3``, 0 for odd ``l > 1``), integrated exactly by
-    Gauss-Legendre quadrature.
 
     Parameters
     ----------
     lmax : int
         Maximum degree.
     normal : numpy.ndarray
-        Shape ``(3,)``, the kernel axis in the frame of the coefficients
+        Shape ``(3,)`` or ``(T, 3)``: kernel axis in the frame of the SH
         (default local +z, the texel normal).
 
     Returns
     -------
     numpy.ndarray
-        Shape ``((lmax+1)**2,)``, float64, in sr.
+        Shape ``((lmax+1)**2,)`` or ``(T, (lmax+1)**2)``, float64:
+        ``2 pi g_l Y_lm(n)``, ``g_l = int_0^1 t P_l(t) dt``.
     """
     lmax = _check_int(lmax, "lmax", 0)
-    n = np.asarray(normal, dtype=np.float64)
-    _check_shape(n, "normal", (3,))
-    norm = np.linalg.norm(n)
-    if not (np.isfinite(norm) and norm > 0):
-        raise ValueError(f"normal must be a non-zero finite vector, got {n!r}")
-    x, w = np.polynomial.legendre.leggauss(lmax // 2 + 2)  # exact up to degree lmax + 3
-    t, w = 0.5 * (x + 1.0), 0.5 * w  # nodes on [0, 1]
-    g = np.array([w @ (t * np.polynomial.legendre.Legendre.basis(l)(t)) for l in range(lmax + 1)])
-    return 2.0 * np.pi * g[sh_degrees(lmax)] * real_sh(n / norm, lmax)
+    n = _check_normals(normal, "normal")
+    return _clamped_cosine_gains(lmax)[sh_degrees(lmax)] * real_sh(n, lmax)
 
 
 def irradiance_from_coeffs(coeffs: np.ndarray, normal: np.ndarray = _LOCAL_NORMAL) -> np.ndarray:
-    """Irradiance ``E = int_{n.w>0} L(w) (n . w) dw`` of an SH radiance expansion.
+    """Irradiance ``E = int_{n.w>0} L(w) (n . w) dw`` of per-texel SH radiance.
 
     Parameters
     ----------
     coeffs : numpy.ndarray
-        Shape ``(T, (lmax+1)**2, C)``: SH fit of the incoming radiance L in
-        the texel frame (e.g. of ``incoming`` at `mirror_directions`).
+        Shape ``(T, (lmax+1)**2, C)``: SH of the incoming radiance L, e.g. the
+        fit of ``incoming`` at `mirror_directions` (texel frame).
     normal : numpy.ndarray
-        Shape ``(3,)``, the surface normal in that frame (default local +z).
+        Shape ``(3,)`` or ``(T, 3)``: the normal in that frame (default local +z).
 
     Returns
     -------
     numpy.ndarray
-        Shape ``(T, C)``, float64, in radiance times sr (``pi L`` for constant L).
+        Shape ``(T, C)``, float64, radiance times sr (``pi L`` for constant L).
     """
     c = np.asarray(coeffs, dtype=np.float64)
     _check_shape(c, "coeffs", (None, None, None))
     lmax = _lmax_of(c.shape[1], f"coeffs of shape {c.shape} (axis 1)")
-    return np.einsum("i,tic->tc", clamped_cosine_sh(lmax, normal), c)
+    a = clamped_cosine_sh(lmax, normal)
+    if a.ndim == 2:
+        _check_shape(a, "normal", (c.shape[0], None))
+        return np.einsum("ti,tic->tc", a, c)
+    return np.einsum("i,tic->tc", a, c)
 
 
-def diffuse_albedo(b_coeffs: np.ndarray, l_coeffs: np.ndarray, ks: np.ndarray) -> np.ndarray:
-    """Diffuse albedo K_d from degree 0 once K_s is known.
+def irradiance_at_normals(env_coeffs: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Irradiance of one distant environment at many surface normals.
 
-    A Lambertian texel reflects the constant radiance ``K_d E / pi`` (E from
-    `irradiance_from_coeffs`), whose degree-0 coefficient is
-    ``sqrt(4 pi) K_d E / pi``; the specular lobe adds ``K_s L_00`` (its filter is
-    1 at l = 0). Hence ``K_d = pi (B_00 - K_s L_00) / (sqrt(4 pi) E)``. This is
-    METHOD's ``B_00 = pi^(-1/2) K_d E' + K_s L_00`` with the paper's hemispherical
-    normalisation ``E' = 2 E``.
+    Unlike a per-texel fit of the mirror-direction samples (which only sees
+    the light at K directions and misestimates E by a few percent with 24
+    views), this uses the whole environment; like the paper's model it ignores
+    occlusion by the object itself.
 
     Parameters
     ----------
-    b_coeffs, l_coeffs : numpy.ndarray
-        Shape ``(T, (lmax+1)**2, C)``: fits of B and L (same parametrisation).
-    ks : numpy.ndarray
-        Shape ``(T,)`` or ``(T, C)``: specular reflectance.
+    env_coeffs : numpy.ndarray
+        Shape ``((lmax+1)**2, C)``: SH of the environment radiance in the frame
+        of ``normals`` (e.g. :func:`freqbrdf.sh.project_equirect`, world frame).
+    normals : numpy.ndarray
+        Shape ``(T, 3)``, surface normals.
 
     Returns
     -------
     numpy.ndarray
-        Shape ``(T, C)``, float64, unclipped; 0 where the irradiance is not
-        positive (a fraction of at least 1e-9 of its DC part).
+        Shape ``(T, C)``, float64, radiance times sr.
     """
-    b = np.asarray(b_coeffs, dtype=np.float64)
-    lc = np.asarray(l_coeffs, dtype=np.float64)
-    _check_shape(lc, "l_coeffs", (None, None, None))
-    _check_shape(b, "b_coeffs", (lc.shape[0], None, lc.shape[2]))
+    c = np.asarray(env_coeffs, dtype=np.float64)
+    _check_shape(c, "env_coeffs", (None, None))
+    lmax = _lmax_of(c.shape[0], f"env_coeffs of shape {c.shape} (axis 0)")
+    n = np.asarray(normals)
+    _check_shape(n, "normals", (None, 3))
+    return clamped_cosine_sh(lmax, n) @ c
+
+
+def diffuse_albedo(
+    b00: np.ndarray, l00: np.ndarray, ks: np.ndarray, irradiance: np.ndarray, unit_dc: np.ndarray | None = None
+) -> np.ndarray:
+    """Diffuse albedo K_d from degree 0 once K_s is known.
+
+    A Lambertian texel reflects the constant radiance ``K_d E / pi``; the
+    specular lobe adds ``K_s L_00`` at degree 0 (its filter is 1 there). So
+    ``B_00 = u K_d E / pi + K_s L_00``, where ``u`` is the degree-0 coefficient
+    of the constant 1: ``sqrt(4 pi)`` for an exact transform, which is METHOD's
+    ``B_00 = pi^(-1/2) K_d E' + K_s L_00`` with the paper's hemispherical
+    normalisation ``E' = 2 E``. But samples of reflected light cover one
+    hemisphere at most, and a fit does not extend constant data on it to a
+    constant on the sphere (measured at lmax 6: DC = 0.86 sqrt(4 pi) for 24
+    views and ``exp``, 0.97 sqrt(4 pi) for 400 views and ``none``). So pass
+    ``unit_dc``, the DC that the same fit gives a channel of ones (append it
+    to the B and L channels of `fit_sh`; the fit is linear, so the diffuse
+    part is then undone exactly).
+
+    Parameters
+    ----------
+    b00, l00 : numpy.ndarray
+        Shape ``(T, C)``: degree-0 coefficients of the fits of B and L.
+    ks : numpy.ndarray
+        Shape ``(T,)`` or ``(T, C)``: specular reflectance.
+    irradiance : numpy.ndarray
+        Shape ``(T, C)``: E (`irradiance_at_normals` or `irradiance_from_coeffs`).
+    unit_dc : numpy.ndarray, optional
+        Shape ``(T,)``: fitted degree-0 coefficient of the constant 1 (default
+        ``sqrt(4 pi)``).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(T, C)``, float64, unclipped; 0 where ``u E`` is not positive.
+    """
+    b = np.asarray(b00, dtype=np.float64)
+    _check_shape(b, "b00", (None, None))
+    lc = np.asarray(l00, dtype=np.float64)
+    _check_shape(lc, "l00", b.shape)
+    e = np.asarray(irradiance, dtype=np.float64)
+    _check_shape(e, "irradiance", b.shape)
     k = np.asarray(ks, dtype=np.float64)
     if k.ndim == 1:
-        _check_shape(k, "ks", (lc.shape[0],))
+        _check_shape(k, "ks", (b.shape[0],))
         k = k[:, None]
     else:
-        _check_shape(k, "ks", (lc.shape[0], lc.shape[2]))
-    e = irradiance_from_coeffs(lc)
-    e_dc = np.pi * np.abs(lc[:, 0]) / np.sqrt(4.0 * np.pi)  # E of the constant part of L
-    ok = np.isfinite(e) & (e > 1e-9 * e_dc) & (e > 0)
-    kd = np.pi * (b[:, 0] - k * lc[:, 0]) / (np.sqrt(4.0 * np.pi) * np.where(ok, e, 1.0))
-    return np.where(ok, kd, 0.0)
+        _check_shape(k, "ks", b.shape)
+    if unit_dc is None:
+        u = np.full((b.shape[0], 1), np.sqrt(4.0 * np.pi))
+    else:
+        u = np.asarray(unit_dc, dtype=np.float64)
+        _check_shape(u, "unit_dc", (b.shape[0],))
+        u = u[:, None]
+    denom = u * e / np.pi
+    ok = np.isfinite(denom) & (denom > 0)
+    return np.where(ok, (b - k * lc) / np.where(ok, denom, 1.0), 0.0)
 
 
 # --------------------------------------------------------------------------
@@ -976,8 +1113,11 @@ def principled_from_lobes(
     alpha is taken as the GGX alpha, ``roughness = sqrt(alpha)``. Metallic m
     solves the luminance (Rec. 709) relations ``Y(kd) = (1 - m) Y(base)`` and
     ``Y(ks) = 0.04 (1 - m) + m Y(base)``, i.e. with ``u = 1 - m``
-    ``0.04 u^2 - (Y(ks) + Y(kd)) u + Y(kd) = 0`` (smaller root; m = 0 when
-    ``Y(ks) <= 0.04``, which no principled material goes below). The base
+    ``0.04 u^2 - (Y(ks) + Y(kd)) u + Y(kd) = 0``: the smaller root, which lies
+    in [0, 1) whenever ``Y(ks) > 0.04``; m = 0 if there is no real root or
+    the root exceeds 1 (K_s at or below a dielectric's 0.04). For a base
+    colour darker than 0.04 the relations have a second exact solution; the
+    more metallic one is returned. The base
     colour is then the per-channel least-squares solution of
     ``(1 - m) base = kd`` and ``m base = ks - 0.04 (1 - m)``, so it comes from
     the diffuse lobe for dielectrics and from the specular lobe for metals
@@ -1015,10 +1155,11 @@ def principled_from_lobes(
     y_d = d @ LUMINANCE
     y_s = k[:, 0] if k.shape[1] == 1 else k @ LUMINANCE
     s = y_s + y_d
-    disc = np.sqrt(np.maximum(s * s - 4.0 * R0_DIELECTRIC * y_d, 0.0))
-    # u = 2 y_d / (s + disc) is the smaller root without cancellation; y_d = 0 -> pure metal
-    metallic_side = y_s > R0_DIELECTRIC
-    u = np.where(metallic_side, 2.0 * y_d / np.where(metallic_side, s + disc, 1.0), 1.0)
+    disc2 = s * s - 4.0 * R0_DIELECTRIC * y_d
+    real = (disc2 >= 0.0) & (s > 0.0)
+    # smaller root u = 2 y_d / (s + sqrt(disc2)), free of cancellation; no real
+    # root (K_s below a dielectric's, diffuse too bright) or black -> dielectric
+    u = np.where(real, 2.0 * y_d / np.where(real, s + np.sqrt(np.maximum(disc2, 0.0)), 1.0), 1.0)
     m = np.clip(1.0 - u, 0.0, 1.0)
     mm = m[:, None]
     base = ((1.0 - mm) * d + mm * (k - R0_DIELECTRIC * (1.0 - mm))) / ((1.0 - mm) ** 2 + mm**2)
