@@ -30,6 +30,7 @@ include: "rules/envs.smk"
 include: "rules/captures.smk"
 include: "rules/exchange.smk"
 include: "rules/observations.smk"
+include: "rules/frequency.smk"
 
 
 rule all:

@@ -80,4 +80,6 @@ def benchmark_outputs():
     outputs += expand("results/captures/{object}/{env}/train", object=SYNTHETIC_OBJECTS, env=CAPTURE_ENVS)
     outputs += expand("results/captures/{object}/{env}/test", object=SYNTHETIC_OBJECTS, env=ENVS)
     outputs += [f"results/observations/{o}/{e}/{POSES}" for o, e in CAPTURES]
+    outputs += [f"results/estimates/{o}/{e}/{POSES}/spectrum" for o, e in CAPTURES]
+    outputs += [f"results/entropy/{o}/{e}/{POSES}" for o, e in CAPTURES]
     return outputs

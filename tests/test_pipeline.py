@@ -120,3 +120,19 @@ def test_exported_and_reimported_capture_gives_the_same_observations(run):
     for name in ("radiance", "weight", "wo_local", "incoming"):
         np.testing.assert_allclose(np.load(imported / f"{name}.npy"), np.load(native / f"{name}.npy"), rtol=1e-5, atol=1e-6)
     np.testing.assert_array_equal(np.load(imported / "texels.npz")["texel"], np.load(native / "texels.npz")["texel"])
+
+
+def test_frequency_stage_outputs(run):
+    sh = run / "results/sh/sphere/studio/gt"
+    n_tex = len(np.load(run / "results/observations/sphere/studio/gt/texels.npz")["texel"])
+    assert np.load(sh / "coeffs_outgoing.npy").shape == np.load(sh / "coeffs_incoming.npy").shape == (n_tex, 49, 3)
+    assert np.load(sh / "spectra_outgoing.npy").shape == (n_tex, 7, 3)
+    entropy = np.load(run / "results/entropy/sphere/studio/gt/entropy.npy")
+    unobserved = np.load(run / "results/entropy/sphere/studio/gt/unobserved.npy")
+    assert np.isfinite(entropy).all() and entropy.min() >= 0.0 and entropy.max() <= 1.0
+    assert (entropy[unobserved] == 1.0).all()
+    assert read_exr(run / "results/entropy/sphere/studio/gt/entropy.exr").shape == (32, 32)
+    for name, channels in (("base_color", 3), ("roughness", 1), ("metallic", 1)):
+        texture = read_exr(run / f"results/estimates/sphere/studio/gt/spectrum/{name}.exr")
+        assert texture.shape[:2] == (32, 32) and (texture.ndim == 2) == (channels == 1)
+        assert texture.min() >= 0.0 and texture.max() <= 1.0

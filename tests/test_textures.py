@@ -60,3 +60,19 @@ def test_bad_arguments_name_the_value():
         svbrdf_textures(4, seed=0)
     with pytest.raises(ValueError, match="cells"):
         svbrdf_textures(64, seed=0, cells=2)
+
+
+def test_scatter_to_atlas_keeps_known_values_and_fills_from_the_nearest():
+    from freqbrdf.textures import scatter_to_atlas
+
+    texel = np.array([0 * 8 + 1, 5 * 8 + 6, 7 * 8 + 7])  # (0,1), (5,6), (7,7)
+    values = np.array([[1.0, 0.0], [2.0, 0.5], [9.0, 9.0]])
+    atlas = scatter_to_atlas(8, texel, values, known=np.array([True, True, False]))
+    assert atlas.shape == (8, 8, 2) and atlas.dtype == np.float32
+    np.testing.assert_array_equal(atlas[0, 1], [1.0, 0.0])
+    np.testing.assert_array_equal(atlas[5, 6], [2.0, 0.5])
+    np.testing.assert_array_equal(atlas[0, 0], [1.0, 0.0])  # nearest known texel
+    np.testing.assert_array_equal(atlas[7, 7], [2.0, 0.5])  # an unknown value is not used
+    assert not (atlas == 9.0).any()
+    with pytest.raises(ValueError, match="no texel has a known value"):
+        scatter_to_atlas(8, texel, values, known=np.zeros(3, bool))

@@ -131,3 +131,51 @@ def coverage_figure(path: str | os.PathLike, resolution: int, texel: np.ndarray,
     ax.set_title(title)
     fig.colorbar(shown, ax=ax, label="views observing the texel (grey: outside the atlas)")
     _save(fig, path)
+
+
+def entropy_figure(path: str | os.PathLike, entropy_atlas: np.ndarray, valid: np.ndarray, title: str) -> None:
+    """Normalised entropy in UV space with the Turbo colour map (blue: certain, red: uncertain).
+
+    Parameters
+    ----------
+    entropy_atlas : ndarray, shape (R, R)
+        Entropy in [0, 1].
+    valid : ndarray, shape (R, R), bool
+        Texels inside the atlas; the rest is drawn grey.
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(5.2, 4.4))
+    cmap = plt.get_cmap("turbo").with_extremes(bad="0.85")
+    shown = ax.imshow(np.where(valid, entropy_atlas, np.nan), cmap=cmap, vmin=0.0, vmax=1.0,
+                      interpolation="nearest", extent=(0, 1, 1, 0))
+    ax.set_xlabel("u")
+    ax.set_ylabel("v")
+    ax.set_title(title)
+    fig.colorbar(shown, ax=ax, label="normalised entropy")
+    _save(fig, path)
+
+
+def texel_spectra_figure(path: str | os.PathLike, examples: Mapping[str, dict]) -> None:
+    """Outgoing and incoming power spectra of a few texels with the fitted filter.
+
+    Parameters
+    ----------
+    examples : mapping of label to dict
+        Each dict holds ``s_b`` and ``s_l`` (lmax + 1,) luminance spectra,
+        ``ks`` and ``alpha`` of the grid estimate and ``entropy``.
+    """
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(examples), figsize=(4.0 * len(examples), 3.3), squeeze=False)
+    for ax, (label, ex) in zip(axes[0], examples.items()):
+        degrees = np.arange(len(ex["s_l"]))
+        scale = max(float(ex["s_l"].sum()), 1e-30)
+        model = ex["ks"] ** 2 * np.exp(-2.0 * (ex["alpha"] * degrees) ** 2) * ex["s_l"]
+        ax.semilogy(degrees, ex["s_l"] / scale, "o-", label="S_L (incoming)")
+        ax.semilogy(degrees, ex["s_b"] / scale, "s-", label="S_B (outgoing)")
+        ax.semilogy(degrees[1:], model[1:] / scale, "k--", label=f"K_s^2 exp(-2(al)^2) S_L")
+        ax.set_title(f"{label}: H = {ex['entropy']:.2f}, K_s = {ex['ks']:.2f}, alpha = {ex['alpha']:.2f}", fontsize=9)
+        ax.set_xlabel("degree l")
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("power / incoming power")
+    axes[0, 0].legend(fontsize=7)
+    _save(fig, path)

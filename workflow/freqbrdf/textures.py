@@ -143,3 +143,40 @@ def svbrdf_textures(resolution: int, seed: int, cells: int = 10) -> dict[str, np
         "roughness": np.clip(rough_tex, 0.0, 1.0).astype(np.float32),
         "metallic": np.clip(metal_tex, 0.0, 1.0).astype(np.float32),
     }
+
+
+def scatter_to_atlas(resolution: int, texel: np.ndarray, values: np.ndarray, known: np.ndarray | None = None) -> np.ndarray:
+    """Per-texel values as an atlas texture, every other texel filled from its nearest known one.
+
+    Filling (instead of leaving zeros) keeps bilinear texture lookups at chart
+    borders and in unobserved regions from mixing in meaningless values.
+
+    Parameters
+    ----------
+    resolution : int
+        Atlas size R.
+    texel : ndarray, shape (T,)
+        Flat texel indices ``i * R + j``.
+    values : ndarray, shape (T,) or (T, C)
+    known : ndarray, shape (T,), bool, optional
+        Which of the T values are estimates (default: all). Unknown ones are
+        filled like texels outside the atlas.
+
+    Returns
+    -------
+    ndarray, shape (R, R) or (R, R, C), float32
+    """
+    from scipy.ndimage import distance_transform_edt
+
+    values = np.asarray(values, dtype=np.float32)
+    known = np.ones(len(texel), dtype=bool) if known is None else np.asarray(known, dtype=bool)
+    if not known.any():
+        raise ValueError("scatter_to_atlas: no texel has a known value")
+    atlas = np.zeros((resolution * resolution,) + values.shape[1:], np.float32)
+    have = np.zeros(resolution * resolution, dtype=bool)
+    atlas[texel[known]] = values[known]
+    have[texel[known]] = True
+    have = have.reshape(resolution, resolution)
+    atlas = atlas.reshape((resolution, resolution) + values.shape[1:])
+    _, (rows, cols) = distance_transform_edt(~have, return_indices=True)
+    return atlas[rows, cols]
