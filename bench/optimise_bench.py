@@ -1,0 +1,240 @@
+"""Time, peak memory and accuracy of the gradient-descent estimator (freqbrdf.optimise).
+
+Timing cases (each in a fresh Python process, so its peak RSS is its own):
+`optimise` on 256x256 texels x 24 views, 150 iterations, lmax 6, init 0.5,
+for ``freq`` (three refits of the shadowed light) and ``rh2001`` (one fit),
+with 2 and 1 threads. Target: < 10 s on 2 cores (the paper: 3 s on a GPU at
+512x512). Inputs are the real observations of ``results/observations/sphere/
+studio/gt`` when they exist (read-only), else synthetic ones of the same shape.
+
+Accuracy (needs the default pipeline's results): parameter MSE against the
+ground-truth textures over observed texels, for every method started from
+0.5 and from the spectrum-only estimate, next to the spectrum-only estimate
+itself. E is the irradiance of the environment's degree-2 SH at the texel
+normals (`spectral.irradiance_at_normals`); SH fit settings are the
+pipeline defaults (lmax 6, ``exp``, lambda 1e-3, unpenalised DC).
+
+    python bench/optimise_bench.py                          # timing + accuracy on sphere/studio
+    python bench/optimise_bench.py --captures sphere/studio torus/sunny
+    python bench/optimise_bench.py --no-accuracy
+
+Writes ``bench/out/optimise.tsv`` (timing) and ``bench/out/optimise_accuracy.tsv``.
+Time is one run after a warm-up run in the same process; "traced" memory is
+the tracemalloc peak of the ``optimise`` call (numpy reports its buffers),
+"max RSS" the peak resident size of the whole process (interpreter, numpy and
+the loaded inputs included).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+OUT = REPO / "bench" / "out"
+RESULTS = REPO / "results"
+TIMING_CAPTURE = "sphere/studio"
+TIMING_CASES = {
+    # name: (method, workers)
+    "freq_w2": ("freq", 2),
+    "rh2001_w2": ("rh2001", 2),
+    "freq_w1": ("freq", 1),
+}
+ACCURACY_METHODS = ("freq", "freq_noshadow", "freq_nomask", "rh2001")
+GROUPS = ("base_color", "roughness", "metallic")
+
+
+def load_capture(capture: str) -> dict | None:
+    """Observations, texels and irradiance of ``object/env`` (gt poses), or None if absent."""
+    from freqbrdf import sh, spectral
+    from freqbrdf.io import read_exr
+
+    obj, env = capture.split("/")
+    obs = RESULTS / "observations" / obj / env / "gt"
+    envmap = RESULTS / "envs" / f"{env}.exr"
+    names = ("radiance", "weight", "wo_local", "incoming")
+    if not (all((obs / f"{n}.npy").is_file() for n in names) and (obs / "texels.npz").is_file() and envmap.is_file()):
+        return None
+    data = {n: np.load(obs / f"{n}.npy") for n in names}
+    texels = np.load(obs / "texels.npz")
+    data["texel"] = texels["texel"]
+    data["resolution"] = int(texels["resolution"])
+    data["irradiance"] = spectral.irradiance_at_normals(sh.project_equirect(read_exr(envmap), 2), texels["normal"])
+    data["source"] = f"results/observations/{capture}/gt"
+    return data
+
+
+def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> dict:
+    """Observations shaped like the real ones: random normals, 24 distant cameras on the
+    upper hemisphere, a pair observed when the texel faces the camera (10% dropped as occluded),
+    a few soft lamps over a sky gradient, radiance of a diffuse plus a glossy lobe."""
+    from freqbrdf import sh, spectral
+
+    rng = np.random.default_rng(seed)
+    n_tex = n_side * n_side
+    normal = rng.normal(size=(n_tex, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    helper = np.where(np.abs(normal[:, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    tangent = np.cross(helper, normal)
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    frame = np.stack([tangent, np.cross(normal, tangent), normal], axis=1)
+    wo = np.einsum("tij,kj->tki", frame, sh.fibonacci_hemisphere(n_views))
+    weight = np.clip(wo[..., 2], 0.0, None) * (rng.random((n_tex, n_views)) > 0.1)
+    wr = np.einsum("tji,tkj->tki", frame, spectral.mirror_directions(wo))
+    lamps = rng.normal(size=(4, 3))
+    lamps /= np.linalg.norm(lamps, axis=1, keepdims=True)
+    colours = rng.uniform(1, 5, (4, 3))
+
+    def light(d: np.ndarray) -> np.ndarray:
+        return 0.3 + 0.2 * d[..., 1:2] + np.exp((d @ lamps.T - 1.0) / 0.05) @ colours
+
+    incoming = light(wr)
+    env = light(sh.equirect_directions(128, 256))
+    kd = rng.uniform(0, 1, (n_tex, 1, 3))
+    radiance = (0.5 * kd + 0.3 * incoming) * (weight > 0)[..., None]
+    f32 = np.float32
+    return {
+        "radiance": radiance.astype(f32), "weight": weight.astype(f32), "wo_local": wo.astype(f32),
+        "incoming": incoming.astype(f32), "texel": np.arange(n_tex), "resolution": n_side,
+        "irradiance": spectral.irradiance_at_normals(sh.project_equirect(env, 2), normal),
+        "source": "synthetic",
+    }
+
+
+def optimise_capture(data: dict, method: str, init: dict | None, **settings) -> tuple[dict, np.ndarray]:
+    from freqbrdf.optimise import OptimiseSettings, optimise
+
+    return optimise(
+        data["radiance"], data["weight"], data["wo_local"], data["incoming"], data["irradiance"],
+        data["texel"], data["resolution"], init, method, OptimiseSettings(**settings),
+    )
+
+
+def run_timing(name: str) -> dict:
+    """Run one timing case in this process; return its measurements."""
+    method, workers = TIMING_CASES[name]
+    data = load_capture(TIMING_CAPTURE) or synthetic_capture()
+    settings = {"workers": workers, "iterations": 150, "lmax": 6}
+    optimise_capture(data, method, None, **settings)  # warm-up (imports, first page faults)
+    start = time.perf_counter()
+    _, curve = optimise_capture(data, method, None, **settings)
+    seconds = time.perf_counter() - start
+    tracemalloc.start()
+    optimise_capture(data, method, None, **settings)
+    _, traced_peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    n_tex, n_views = data["weight"].shape
+    return {
+        "case": name,
+        "method": method,
+        "workers": workers,
+        "texels": n_tex,
+        "views": n_views,
+        "observed_pairs": int((data["weight"] > 0).sum()),
+        "iterations": 150,
+        "lmax": 6,
+        "inputs": data["source"],
+        "seconds": round(seconds, 2),
+        "target_s": 10.0,
+        "traced_peak_mb": round(traced_peak / 2**20, 1),
+        "max_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+        "final_loss": round(float(curve[-1]), 5),
+    }
+
+
+def read_textures(directory: Path) -> dict[str, np.ndarray] | None:
+    """``base_color`` (R*R, 3), ``roughness``, ``metallic`` (R*R,) of a texture directory, flat ``i * R + j``."""
+    from freqbrdf.io import read_exr
+
+    if not all((directory / f"{g}.exr").is_file() for g in GROUPS):
+        return None
+    out = {}
+    for g in GROUPS:
+        img = read_exr(directory / f"{g}.exr").astype(np.float64)
+        out[g] = img.reshape(img.shape[0] * img.shape[1], -1)
+        if g != "base_color":
+            out[g] = out[g][:, 0]
+    return out
+
+
+def mse_row(label: str, capture: str, est: dict, truth: dict, observed: np.ndarray, seconds: float | str) -> dict:
+    row = {"capture": capture, "estimate": label}
+    for g in GROUPS:
+        row[g] = float(np.mean((est[g][observed] - truth[g][observed]) ** 2))
+    row["mean"] = float(np.mean([row[g] for g in GROUPS]))
+    row = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()}
+    row["seconds"] = seconds
+    return row
+
+
+def run_accuracy(capture: str) -> list[dict]:
+    """MSE of every method (init 0.5 and init spectrum) and of the spectrum-only estimate."""
+    data = load_capture(capture)
+    obj, env = capture.split("/")
+    gt = read_textures(RESULTS / "objects" / obj)
+    if data is None or gt is None:
+        print(f"{capture}: observations or ground truth missing, accuracy skipped")
+        return []
+    texel = data["texel"]
+    observed = (data["weight"] > 0).any(axis=1)
+    truth = {g: v[texel] for g, v in gt.items()}
+    rows = []
+    spectrum = read_textures(RESULTS / "estimates" / obj / env / "gt" / "spectrum")
+    inits: dict[str, dict | None] = {"0.5": None}
+    if spectrum is not None:
+        spectrum = {g: np.clip(v[texel], 0.0, 1.0) for g, v in spectrum.items()}
+        rows.append(mse_row("spectrum", capture, spectrum, truth, observed, ""))
+        inits["spectrum"] = spectrum
+    for method in ACCURACY_METHODS:
+        for init_name, init in inits.items():
+            start = time.perf_counter()
+            est, _ = optimise_capture(data, method, init, workers=2)
+            rows.append(mse_row(f"{method} (init {init_name})", capture, est, truth, observed,
+                                round(time.perf_counter() - start, 2)))
+            print(rows[-1], flush=True)
+    return rows
+
+
+def write_table(rows: list[dict], path: Path) -> None:
+    columns = list(rows[0])
+    lines = ["\t".join(columns)] + ["\t".join(str(r[c]) for c in columns) for r in rows]
+    path.write_text("\n".join(lines) + "\n")
+    widths = [max(len(c), *(len(str(r[c])) for r in rows)) for c in columns]
+    for line in lines:
+        print("  ".join(cell.ljust(w) for cell, w in zip(line.split("\t"), widths)))
+    print(f"\nwritten {path}\n")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--case", help=argparse.SUPPRESS)  # internal: run one timing case, print JSON
+    parser.add_argument("--captures", nargs="+", default=[TIMING_CAPTURE], help="object/env pairs for accuracy")
+    parser.add_argument("--no-accuracy", action="store_true", help="timing only")
+    parser.add_argument("--no-timing", action="store_true", help="accuracy only")
+    args = parser.parse_args()
+    if args.case:
+        print(json.dumps(run_timing(args.case)))
+        return
+    OUT.mkdir(parents=True, exist_ok=True)
+    if not args.no_timing:
+        rows = []
+        for name in TIMING_CASES:
+            out = subprocess.run([sys.executable, __file__, "--case", name], check=True, capture_output=True, text=True)
+            rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        write_table(rows, OUT / "optimise.tsv")
+    if not args.no_accuracy:
+        rows = [row for capture in args.captures for row in run_accuracy(capture)]
+        if rows:
+            write_table(rows, OUT / "optimise_accuracy.tsv")
+
+
+if __name__ == "__main__":
+    main()

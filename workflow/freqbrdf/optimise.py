@@ -1,0 +1,1116 @@
+"""Gradient-descent SVBRDF estimator: the "mixed" pipeline (METHOD.md sections 4 and 5).
+
+Per texel p the parameters are the base colour (RGB), roughness r and
+metallic m, all in [0, 1]; ``alpha = max(r^2, 1e-3)`` as in Mitsuba's
+``principled`` BSDF. For every observation (p, w_o) the model predicts
+
+    B(p, w_o) = (1 - m) base E(p) / pi + F(theta_o) G1m(theta_o) Spec(p, w_r)
+
+- ``E(p)``: irradiance at the texel normal from the whole environment
+  (an input, e.g. :func:`freqbrdf.spectral.irradiance_at_normals`);
+- ``F = R0 + (1 - R0)(1 - cos theta_o)^5``, ``R0 = 0.04 (1 - m) + m base``;
+- ``G1(theta) = 2 / (1 + sqrt(1 + alpha^2 tan^2 theta))`` (GGX Smith); the
+  masking term ``G1m = G1(theta_o)``;
+- ``Spec = sum_lm exp(-(alpha l)^2) Lg_lm Y_lm(w_r)``: the specular lobe as
+  an SH filter at the mirror direction ``w_r``, where ``Lg`` is the per-texel
+  SH fit (:func:`freqbrdf.spectral.fit_sh`, same samples, directions and
+  weights as the frequency stage) of the shadowed light ``G1(theta_i) L``;
+  at the mirror direction ``theta_i = theta_o``.
+
+``Lg`` depends on alpha, so it is refitted every ``refit_every`` iterations
+and held constant in between (no gradient through the refit, as in the
+authors' code). After a refit, `light_terms` stores the per-degree
+contributions ``P[n, l, c] = sum_m Lg_lm,c Y_lm(w_r,n)`` of every observation
+n, so ``Spec = sum_l exp(-(alpha l)^2) P[n, l]`` is cheap to evaluate and to
+differentiate with respect to alpha.
+
+Variants (`METHODS`): ``freq`` (shadowing and masking), ``freq_noshadow``
+(``G1(theta_i) = 1`` in the fit of L), ``freq_nomask`` (``G1m = 1``) and
+``rh2001`` (neither: Ramamoorthi and Hanrahan 2001).
+
+Objective
+---------
+``loss = mean_{observed (p, k), c} |B_model - B_observed| + tv_weight * TV``:
+the L1 data term is a plain mean over observed pairs (``weight > 0``) and the
+three colour channels (observations are not weighted by cos theta_o). TV is the
+anisotropic total variation of the parameter textures in UV space,
+
+    TV = (1 / M) sum_{(i, j)} sum_q |x_iq - x_jq|,
+
+over the M pairs of horizontally or vertically adjacent atlas texels that are
+both among the T texels (flat index ``i * R + j``), summed over the five
+parameter channels q (base R, G, B, roughness, metallic). Dividing by M makes
+TV a mean absolute step per adjacency, like the data term a mean, so
+``tv_weight`` keeps its meaning across texture resolutions and atlas
+coverage. Both absolute values use ``sign(0) = 0`` as their derivative.
+
+Gradients are analytic (see `loss_and_gradient`); Adam (`adam_step`) updates
+all texels and views in one batch and clamps the parameters to [0, 1] after
+each step. Without shadowing the fitted light does not depend on alpha, so
+``freq_noshadow`` and ``rh2001`` fit it once.
+
+Layout and cost
+---------------
+Only observed pairs are stored (`build_problem`; a 24-view capture observes
+about 30% of its texel-view pairs). Texels are grouped by their number of
+pairs into chunks of about ``chunk_pairs`` padded pairs, laid out (pair,
+texel) so that per-texel values broadcast and per-texel sums are sums over
+one axis; the chunks run on ``workers`` threads, write disjoint slices and
+are summed in a fixed order, so results do not depend on the number of
+threads. On the default sphere/studio capture (256^2 texels x 24 views,
+0.45 M observed pairs, 2 cores) 150 iterations of ``freq`` take about 7 s,
+of which about 4 s are the three refits (`light_terms`, mostly
+:func:`freqbrdf.spectral.fit_sh`); see ``bench/optimise_bench.py``.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import Executor, ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Callable, Mapping
+
+import numpy as np
+from scipy import sparse
+
+from .sh import real_sh
+from .spectral import REGULARISERS, R0_DIELECTRIC, fit_sh, mirror_directions
+
+__all__ = [
+    "METHODS",
+    "PARAM_NAMES",
+    "PARAM_COLUMNS",
+    "ALPHA_MIN",
+    "OptimiseSettings",
+    "Problem",
+    "alpha_from_roughness",
+    "smith_g1",
+    "schlick_fresnel",
+    "atlas_neighbours",
+    "build_problem",
+    "pack_params",
+    "unpack_params",
+    "light_terms",
+    "forward",
+    "total_variation",
+    "loss_and_gradient",
+    "adam_step",
+    "optimise",
+]
+
+# method name -> (shadowing G1(theta_i) in the fit of L, masking G1(theta_o))
+METHODS: dict[str, tuple[bool, bool]] = {
+    "freq": (True, True),
+    "freq_noshadow": (False, True),
+    "freq_nomask": (True, False),
+    "rh2001": (False, False),
+}
+PARAM_NAMES = ("base_color", "roughness", "metallic")
+PARAM_COLUMNS = ("base_r", "base_g", "base_b", "roughness", "metallic")  # columns of a packed (T, 5) array
+ALPHA_MIN = 1e-3  # Mitsuba's principled BSDF clamps alpha here
+_N_PARAMS = len(PARAM_COLUMNS)
+_DTYPES = ("float32", "float64")
+_EVAL_CHUNK = 16384  # observations per chunk when evaluating the light terms (Y and Lg gathers: ~20 MB)
+
+
+# --------------------------------------------------------------------------
+# settings and validation
+# --------------------------------------------------------------------------
+def _check_int(value: object, name: str, minimum: int) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an int, got {type(value).__name__} {value!r}")
+    if int(value) < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value}")
+    return int(value)
+
+
+def _check_shape(a: np.ndarray, name: str, shape: tuple[int | None, ...]) -> None:
+    """``shape`` entries of None match any size."""
+    if a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape)):
+        want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
+        raise ValueError(f"{name} must have shape {want}, got shape {a.shape}")
+
+
+def _check_finite(a: np.ndarray, name: str) -> None:
+    if not np.all(np.isfinite(a)):
+        idx = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+        raise ValueError(f"{name} must be finite, got {float(a[idx])!r} at index {idx}")
+
+
+def _check_method(method: str) -> tuple[bool, bool]:
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {tuple(METHODS)}, got {method!r}")
+    return METHODS[method]
+
+
+@dataclass(frozen=True)
+class OptimiseSettings:
+    """Settings of `optimise` (defaults: METHOD.md section 5 and the authors' code).
+
+    Attributes
+    ----------
+    iterations : int
+        Adam steps (one full batch each).
+    lr : float
+        Adam learning rate.
+    betas : tuple of float
+        Adam decay rates of the first and second moment.
+    eps : float
+        Adam denominator offset.
+    refit_every : int
+        Iterations between refits of the shadowed light ``Lg`` (the first
+        fit is at iteration 0; methods without shadowing fit once).
+    tv_weight : float
+        Weight of the total variation of the parameter textures, ``>= 0``.
+    lmax : int
+        Highest SH degree of ``Lg``.
+    regulariser, lam, penalise_dc
+        SH fit settings, as in :func:`freqbrdf.spectral.fit_sh`; pass the
+        frequency stage's (config ``sh.*``).
+    workers : int
+        Threads (chunks of texels run concurrently; results are identical
+        for any number).
+    dtype : {"float32", "float64"}
+        Precision of the per-observation arrays (parameters, gradients and
+        Adam moments are always float64; the loss is accumulated in float64).
+    chunk_pairs : int
+        Padded observations per chunk of the loss and gradient: larger chunks
+        cost less Python overhead and fewer thread hand-offs, smaller ones
+        stay in the CPU cache (32768 was fastest on 2 cores; 4096-32768
+        differ by 1.5x).
+    """
+
+    iterations: int = 150
+    lr: float = 0.02
+    betas: tuple[float, float] = (0.9, 0.999)
+    eps: float = 1e-8
+    refit_every: int = 50
+    tv_weight: float = 1e-3
+    lmax: int = 6
+    regulariser: str = "exp"
+    lam: float = 1e-3
+    penalise_dc: bool = False
+    workers: int = 1
+    dtype: str = "float32"
+    chunk_pairs: int = 32768
+
+    def __post_init__(self) -> None:
+        _check_int(self.iterations, "iterations", 0)
+        _check_int(self.refit_every, "refit_every", 1)
+        _check_int(self.lmax, "lmax", 0)
+        _check_int(self.workers, "workers", 1)
+        _check_int(self.chunk_pairs, "chunk_pairs", 1)
+        if not (np.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"lr must be a finite number > 0, got {self.lr!r}")
+        if len(self.betas) != 2 or not all(0.0 <= b < 1.0 for b in self.betas):
+            raise ValueError(f"betas must be two numbers in [0, 1), got {self.betas!r}")
+        if not (np.isfinite(self.eps) and self.eps > 0):
+            raise ValueError(f"eps must be a finite number > 0, got {self.eps!r}")
+        if not (np.isfinite(self.tv_weight) and self.tv_weight >= 0):
+            raise ValueError(f"tv_weight must be a finite number >= 0, got {self.tv_weight!r}")
+        if self.regulariser not in REGULARISERS:
+            raise ValueError(f"regulariser must be one of {REGULARISERS}, got {self.regulariser!r}")
+        if self.regulariser != "none" and not (np.isfinite(self.lam) and self.lam > 0):
+            raise ValueError(f"lam must be a finite number > 0 for regulariser {self.regulariser!r}, got {self.lam!r}")
+        if self.dtype not in _DTYPES:
+            raise ValueError(f"dtype must be one of {_DTYPES}, got {self.dtype!r}")
+
+
+# --------------------------------------------------------------------------
+# BRDF terms
+# --------------------------------------------------------------------------
+def alpha_from_roughness(roughness: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """GGX width ``alpha = max(r^2, ALPHA_MIN)`` and the derivative the optimiser uses.
+
+    Below ``r_min = sqrt(ALPHA_MIN)`` alpha is constant, so the true
+    derivative is 0 there and a texel whose roughness overshoots below
+    ``r_min`` (Adam moves every parameter by about ``lr`` per step, whatever
+    the gradient's size) would never move again; with 0.5 initial values this
+    trapped 1-2 of the 200 texels of a noise-free synthetic test at
+    ``r ~ 0.01`` although their true roughness was 0.3-0.37. So the derivative is
+    passed straight through the clamp: ``2 max(r, r_min)``, exact wherever
+    the clamp is inactive.
+
+    Parameters
+    ----------
+    roughness : numpy.ndarray
+        Shape ``(T,)``, in [0, 1].
+
+    Returns
+    -------
+    alpha, dalpha_dr : numpy.ndarray
+        Shape ``(T,)``, float64.
+    """
+    r = np.asarray(roughness, dtype=np.float64)
+    r_min = np.sqrt(ALPHA_MIN)
+    return np.maximum(r * r, ALPHA_MIN), 2.0 * np.maximum(r, r_min)
+
+
+def _tan2(cos_theta: np.ndarray) -> np.ndarray:
+    c2 = cos_theta * cos_theta
+    return (1.0 - c2) / c2
+
+
+def smith_g1(cos_theta: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """GGX Smith masking of one direction, ``2 / (1 + sqrt(1 + alpha^2 tan^2 theta))``.
+
+    Parameters
+    ----------
+    cos_theta : numpy.ndarray
+        Cosine of the angle to the normal, in (0, 1] (broadcastable with ``alpha``).
+    alpha : numpy.ndarray
+        GGX width (dimensionless).
+
+    Returns
+    -------
+    numpy.ndarray
+        In (0, 1]; 1 at normal incidence, decreasing toward grazing angles and
+        with alpha.
+    """
+    c = np.asarray(cos_theta, dtype=np.float64)
+    a = np.asarray(alpha, dtype=np.float64)
+    return 2.0 / (1.0 + np.sqrt(1.0 + a * a * _tan2(c)))
+
+
+def schlick_fresnel(r0: np.ndarray, cos_theta: np.ndarray) -> np.ndarray:
+    """Schlick's Fresnel ``R0 + (1 - R0)(1 - cos theta)^5``.
+
+    Parameters
+    ----------
+    r0 : numpy.ndarray
+        Reflectance at normal incidence (broadcastable with ``cos_theta``).
+    cos_theta : numpy.ndarray
+        Cosine of the angle to the normal, in [0, 1].
+
+    Returns
+    -------
+    numpy.ndarray
+        Reflectance, from ``R0`` at normal incidence to 1 at grazing.
+    """
+    s5 = (1.0 - np.asarray(cos_theta, dtype=np.float64)) ** 5
+    return np.asarray(r0, dtype=np.float64) * (1.0 - s5) + s5
+
+
+def atlas_neighbours(texel: np.ndarray, resolution: int) -> np.ndarray:
+    """Horizontally and vertically adjacent pairs among the given atlas texels.
+
+    Parameters
+    ----------
+    texel : numpy.ndarray
+        Shape ``(T,)``, unique flat indices ``i * R + j``.
+    resolution : int
+        Atlas size R.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(M, 2)``, int64 positions into ``texel`` (not flat indices):
+        all horizontal pairs (row-major), then all vertical ones.
+    """
+    resolution = _check_int(resolution, "resolution", 1)
+    t = np.asarray(texel)
+    lookup = np.full(resolution * resolution, -1, dtype=np.int64)
+    lookup[t] = np.arange(t.shape[0])
+    grid = lookup.reshape(resolution, resolution)
+    pairs = np.concatenate(
+        [
+            np.stack([grid[:, :-1].ravel(), grid[:, 1:].ravel()], axis=1),
+            np.stack([grid[:-1, :].ravel(), grid[1:, :].ravel()], axis=1),
+        ]
+    )
+    return pairs[(pairs >= 0).all(axis=1)]
+
+
+# --------------------------------------------------------------------------
+# observations
+# --------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class _Chunk:
+    """Observations of t texels with at most k pairs each, padded to (k, t).
+
+    Texel-major padding (pairs along axis 0, texels along the last axis) lets
+    per-texel values broadcast without gathers and per-texel sums be sums
+    over axis 0; texels are grouped by their number of pairs, so padding
+    wastes little (about 1% on a 24-view capture).
+    """
+
+    lo: int  # the chunk's texels are Problem.perm[lo:lo + t]
+    pairs: np.ndarray  # (k, t) int64, indices into the flat pair list (0 in padding)
+    valid: np.ndarray  # (k, t) dtype, 1 for a real pair, 0 for padding
+    schlick: np.ndarray  # (k, t) dtype, c5 = (1 - cos theta_o)^5, 0 in padding
+    one_minus_schlick: np.ndarray  # (k, t) dtype, 1 - c5
+    tan2: np.ndarray  # (k, t) dtype, tan^2 theta_o, 0 in padding
+    radiance: np.ndarray  # (3, k, t) dtype, observed B, 0 in padding
+
+    @property
+    def hi(self) -> int:
+        return self.lo + self.pairs.shape[1]
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """Observations of one capture in the layout the estimator works on.
+
+    Build with `build_problem`. There are N observed (texel, view) pairs,
+    sorted by texel; T_obs of the T texels have at least one. Internally the
+    parameters live in a permuted texel order (``perm``): the observed texels
+    chunk by chunk, then the others, so that each chunk's texels are a
+    contiguous slice.
+
+    Attributes
+    ----------
+    n_texels, n_views : int
+        T and K.
+    pair_texel, pair_view : numpy.ndarray
+        Shape ``(N,)``, int64: texel (0..T-1) and view of each pair.
+    pair_slot : numpy.ndarray
+        Shape ``(N,)``, int64: index of the pair's texel in ``observed``.
+    observed : numpy.ndarray
+        Shape ``(T_obs,)``, int64: texels with at least one pair, ascending.
+    weight, cos_o : numpy.ndarray
+        Shape ``(N,)``, float64: fit weight and ``cos theta_o``.
+    mirror : numpy.ndarray
+        Shape ``(N, 3)``, float64: local mirror direction (unit).
+    incoming : numpy.ndarray
+        Shape ``(N, 3)``, float64: light L along ``mirror``.
+    irradiance : numpy.ndarray
+        Shape ``(T, 3)``, float64: E at each texel normal.
+    neighbours : numpy.ndarray
+        Shape ``(M, 2)``, int64: `atlas_neighbours` of the texels.
+    perm : numpy.ndarray
+        Shape ``(T,)``, int64: texel at each internal position.
+    chunks : tuple
+        Padded per-chunk arrays of the loss (internal).
+    irradiance_pi : numpy.ndarray
+        Shape ``(3, T_obs)``, float64: ``E / pi`` of ``perm[:T_obs]``.
+    tv_operator, tv_adjoint : scipy.sparse.csr_matrix
+        Shapes ``(M, T)`` and ``(T, M)``: ``x_i - x_j`` of each neighbour pair
+        (internal order) and its transpose.
+    dtype : numpy.dtype
+        Precision of the per-observation arrays of the loss.
+    """
+
+    n_texels: int
+    n_views: int
+    pair_texel: np.ndarray
+    pair_view: np.ndarray
+    pair_slot: np.ndarray
+    observed: np.ndarray
+    weight: np.ndarray
+    cos_o: np.ndarray
+    mirror: np.ndarray
+    incoming: np.ndarray
+    irradiance: np.ndarray
+    neighbours: np.ndarray
+    perm: np.ndarray
+    chunks: tuple[_Chunk, ...]
+    irradiance_pi: np.ndarray
+    tv_operator: sparse.csr_matrix
+    tv_adjoint: sparse.csr_matrix
+    dtype: np.dtype
+
+    @property
+    def n_pairs(self) -> int:
+        """Number of observed pairs N."""
+        return int(self.pair_texel.shape[0])
+
+    @property
+    def n_observed(self) -> int:
+        """Number of texels with at least one pair, T_obs."""
+        return int(self.observed.shape[0])
+
+
+def _group_texels(counts: np.ndarray, chunk_pairs: int) -> list[np.ndarray]:
+    """Positions into ``counts`` (pairs per texel, all > 0) grouped into padded chunks.
+
+    Texels are sorted by count (stable, so deterministic) and cut so that
+    ``max count * texels <= chunk_pairs`` (at least one texel per chunk).
+    """
+    order = np.argsort(counts, kind="stable")
+    sorted_counts = counts[order]
+    groups = []
+    i = 0
+    while i < order.shape[0]:
+        # counts ascend, so the padded size of order[i:j], counts[j-1] (j - i), increases with j
+        size = sorted_counts[i:] * np.arange(1, order.shape[0] - i + 1)
+        j = i + max(1, int(np.count_nonzero(size <= chunk_pairs)))
+        groups.append(order[i:j])
+        i = j
+    return groups
+
+
+def _make_chunk(
+    slots: np.ndarray, lo: int, counts: np.ndarray, first: np.ndarray, cos_o: np.ndarray, radiance: np.ndarray,
+    ftype: np.dtype,
+) -> _Chunk:
+    """Padded arrays of the observed texels ``slots`` (positions into ``counts``)."""
+    k = int(counts[slots].max())
+    rank = np.arange(k)[:, None]
+    valid = rank < counts[slots][None, :]
+    pairs = np.where(valid, first[slots][None, :] + rank, 0)
+    c = np.where(valid, cos_o[pairs], 1.0)  # 1 gives padding tan^2 = 0 and c5 = 0
+    c5 = (1.0 - c) ** 5
+    return _Chunk(
+        lo=lo,
+        pairs=pairs,
+        valid=valid.astype(ftype),
+        schlick=c5.astype(ftype),
+        one_minus_schlick=(1.0 - c5).astype(ftype),
+        tan2=_tan2(c).astype(ftype),
+        radiance=np.ascontiguousarray(np.moveaxis(radiance[pairs], -1, 0) * valid, dtype=ftype),
+    )
+
+
+def _difference_operator(neighbours: np.ndarray, n_texels: int) -> sparse.csr_matrix:
+    """Sparse (M, T) matrix taking x to ``x_i - x_j`` for each neighbour pair (i, j)."""
+    m = neighbours.shape[0]
+    rows = np.repeat(np.arange(m), 2)
+    vals = np.tile([1.0, -1.0], m)
+    return sparse.csr_matrix((vals, (rows, neighbours.ravel())), shape=(m, n_texels))
+
+
+def build_problem(
+    radiance: np.ndarray,
+    weight: np.ndarray,
+    wo_local: np.ndarray,
+    incoming: np.ndarray,
+    irradiance: np.ndarray,
+    texel: np.ndarray,
+    resolution: int,
+    dtype: str = "float32",
+    chunk_pairs: int = 32768,
+) -> Problem:
+    """Validate a capture's observations and arrange them for the estimator.
+
+    Parameters
+    ----------
+    radiance : numpy.ndarray
+        Shape ``(T, K, 3)``, observed outgoing radiance B (README "Observations").
+    weight : numpy.ndarray
+        Shape ``(T, K)``, fit weight (cos theta_o), 0 where not observed; pairs
+        with ``weight > 0`` are the observations.
+    wo_local : numpy.ndarray
+        Shape ``(T, K, 3)``, direction to the camera in the texel frame (z normal).
+    incoming : numpy.ndarray
+        Shape ``(T, K, 3)``, light L along the mirror direction.
+    irradiance : numpy.ndarray
+        Shape ``(T, 3)``, E at the texel normals (radiance times sr).
+    texel : numpy.ndarray
+        Shape ``(T,)``, unique flat atlas indices ``i * R + j``.
+    resolution : int
+        Atlas size R.
+    dtype : {"float32", "float64"}
+        Precision of the per-observation arrays of the loss.
+    chunk_pairs : int
+        Padded observations per chunk (see `OptimiseSettings`).
+
+    Returns
+    -------
+    Problem
+    """
+    if dtype not in _DTYPES:
+        raise ValueError(f"dtype must be one of {_DTYPES}, got {dtype!r}")
+    chunk_pairs = _check_int(chunk_pairs, "chunk_pairs", 1)
+    resolution = _check_int(resolution, "resolution", 1)
+    w = np.asarray(weight)
+    _check_shape(w, "weight", (None, None))
+    n_tex, n_views = w.shape
+    b = np.asarray(radiance)
+    wo = np.asarray(wo_local)
+    li = np.asarray(incoming)
+    e = np.asarray(irradiance, dtype=np.float64)
+    t = np.asarray(texel)
+    for name, a in (("radiance", b), ("wo_local", wo), ("incoming", li)):
+        _check_shape(a, name, (n_tex, n_views, 3))
+    _check_shape(e, "irradiance", (n_tex, 3))
+    _check_shape(t, "texel", (n_tex,))
+    _check_finite(e, "irradiance")
+    if not np.issubdtype(t.dtype, np.integer):
+        raise TypeError(f"texel must hold integers, got dtype {t.dtype}")
+    if n_tex and (t.min() < 0 or t.max() >= resolution * resolution):
+        bad = t[(t < 0) | (t >= resolution * resolution)][0]
+        raise ValueError(
+            f"texel indices must be in [0, {resolution * resolution}) for resolution {resolution}, got {bad}"
+        )
+    if np.unique(t).shape[0] != n_tex:
+        raise ValueError("texel indices must be unique")
+    _check_finite(w, "weight")
+    if (w < 0).any():
+        i, k = np.argwhere(w < 0)[0]
+        raise ValueError(f"weight must be >= 0, got {float(w[i, k])!r} at texel {i}, view {k}")
+
+    pt, pv = np.nonzero(w > 0)  # row-major, so sorted by texel
+    if pt.shape[0] == 0:
+        raise ValueError("weight has no observed pair (no entry > 0)")
+    b_p = b[pt, pv].astype(np.float64)
+    li_p = li[pt, pv].astype(np.float64)
+    wo_p = wo[pt, pv].astype(np.float64)
+    for name, a in (("radiance", b_p), ("incoming", li_p), ("wo_local", wo_p)):
+        bad = ~np.isfinite(a).all(axis=1)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(
+                f"{name} must be finite where weight > 0, got {a[i].tolist()} at texel {pt[i]}, view {pv[i]}"
+            )
+    norm = np.sqrt(np.einsum("ni,ni->n", wo_p, wo_p))
+    cos_o = wo_p[:, 2] / np.where(norm > 0, norm, 1.0)
+    bad = ~(cos_o > 0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(
+            f"wo_local must point above the surface (z > 0) where weight > 0, got {wo_p[i].tolist()} "
+            f"at texel {pt[i]}, view {pv[i]}"
+        )
+
+    all_counts = np.bincount(pt, minlength=n_tex)
+    observed = np.nonzero(all_counts)[0].astype(np.int64)
+    counts = all_counts[observed]
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    ftype = np.dtype(dtype)
+    groups = _group_texels(counts, chunk_pairs)
+    offsets = np.concatenate([[0], np.cumsum([g.shape[0] for g in groups])])
+    chunks = tuple(_make_chunk(g, int(lo), counts, first, cos_o, b_p, ftype) for g, lo in zip(groups, offsets))
+    order = observed[np.concatenate(groups)]
+    perm = np.concatenate([order, np.nonzero(all_counts == 0)[0]]).astype(np.int64)
+    position = np.empty(n_tex, dtype=np.int64)
+    position[perm] = np.arange(n_tex)
+    neighbours = atlas_neighbours(t, resolution)
+    tv_op = _difference_operator(position[neighbours], n_tex)
+    return Problem(
+        n_texels=n_tex,
+        n_views=n_views,
+        pair_texel=pt.astype(np.int64),
+        pair_view=pv.astype(np.int64),
+        pair_slot=np.repeat(np.arange(observed.shape[0], dtype=np.int64), counts),
+        observed=observed,
+        weight=w[pt, pv].astype(np.float64),
+        cos_o=cos_o,
+        mirror=mirror_directions(wo_p / norm[:, None]),
+        incoming=li_p,
+        irradiance=e,
+        neighbours=neighbours,
+        perm=perm,
+        chunks=chunks,
+        irradiance_pi=np.ascontiguousarray(e[order].T / np.pi),
+        tv_operator=tv_op,
+        tv_adjoint=tv_op.T.tocsr(),
+        dtype=ftype,
+    )
+
+
+def pack_params(params: Mapping[str, np.ndarray], n_texels: int) -> np.ndarray:
+    """Parameter textures as one ``(T, 5)`` array (columns `PARAM_COLUMNS`).
+
+    Parameters
+    ----------
+    params : mapping
+        ``base_color`` (T, 3), ``roughness`` (T,), ``metallic`` (T,), in [0, 1].
+    n_texels : int
+        T.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(T, 5)``, float64.
+    """
+    missing = [k for k in PARAM_NAMES if k not in params]
+    if missing:
+        raise ValueError(f"params lacks {missing}; expected keys {PARAM_NAMES}")
+    out = np.empty((n_texels, _N_PARAMS))
+    for name, cols, shape in (
+        ("base_color", slice(0, 3), (n_texels, 3)),
+        ("roughness", 3, (n_texels,)),
+        ("metallic", 4, (n_texels,)),
+    ):
+        a = np.asarray(params[name], dtype=np.float64)
+        _check_shape(a, name, shape)
+        _check_finite(a, name)
+        if (a < 0).any() or (a > 1).any():
+            raise ValueError(f"{name} must be in [0, 1], got {float(a[(a < 0) | (a > 1)][0])!r}")
+        out[:, cols] = a
+    return out
+
+
+def unpack_params(x: np.ndarray) -> dict[str, np.ndarray]:
+    """Inverse of `pack_params`: ``(T, 5)`` -> ``base_color`` (T, 3), ``roughness``, ``metallic`` (T,)."""
+    x = np.asarray(x, dtype=np.float64)
+    _check_shape(x, "x", (None, _N_PARAMS))
+    return {"base_color": x[:, :3].copy(), "roughness": x[:, 3].copy(), "metallic": x[:, 4].copy()}
+
+
+def _check_x(x: np.ndarray, problem: Problem) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    _check_shape(x, "x", (problem.n_texels, _N_PARAMS))
+    _check_finite(x, "x")
+    return x
+
+
+def _run(pool: Executor | None, fn: Callable[[int], object], n: int) -> list:
+    """``[fn(i) for i in range(n)]``, on ``pool`` if given (results in order)."""
+    if pool is None or n == 1:
+        return [fn(i) for i in range(n)]
+    return list(pool.map(fn, range(n)))
+
+
+# --------------------------------------------------------------------------
+# shadowed light
+# --------------------------------------------------------------------------
+def light_terms(
+    roughness: np.ndarray,
+    problem: Problem,
+    shadowing: bool,
+    lmax: int = 6,
+    regulariser: str = "exp",
+    lam: float = 1e-3,
+    penalise_dc: bool = False,
+    workers: int = 1,
+) -> np.ndarray:
+    """Per-degree contributions of the fitted (shadowed) light at each observation.
+
+    Fits ``Lg`` to ``G1(theta_o, alpha) L`` (to ``L`` without shadowing) at
+    the mirror directions with the fit weights (:func:`freqbrdf.spectral.fit_sh`),
+    then evaluates ``P[n, l, c] = sum_m Lg_lm,c Y_lm(w_r,n)``.
+
+    Parameters
+    ----------
+    roughness : numpy.ndarray
+        Shape ``(T,)``: the roughness whose alpha shadows the light (unused
+        without shadowing).
+    problem : Problem
+        Observations (`build_problem`).
+    shadowing : bool
+        Apply ``G1(theta_i)`` before the fit.
+    lmax, regulariser, lam, penalise_dc
+        SH fit settings, as in :func:`freqbrdf.spectral.fit_sh`.
+    workers : int
+        Threads of the fit and the evaluation.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(N, lmax + 1, 3)``, the problem's dtype; ``sum_l P[n, l]`` is
+        the fitted light at observation n.
+    """
+    r = np.asarray(roughness, dtype=np.float64)
+    _check_shape(r, "roughness", (problem.n_texels,))
+    _check_finite(r, "roughness")
+    lmax = _check_int(lmax, "lmax", 0)
+    workers = _check_int(workers, "workers", 1)
+    values = problem.incoming.copy()
+    if shadowing:
+        alpha = alpha_from_roughness(r)[0]
+        values *= smith_g1(problem.cos_o, alpha[problem.pair_texel])[:, None]
+    # fit_sh wants dense (texel, view) arrays; only texels with observations enter
+    slot, view = problem.pair_slot, problem.pair_view
+    d = np.zeros((problem.n_observed, problem.n_views, 3))
+    d[..., 2] = 1.0  # any valid direction for the zero-weight slots
+    d[slot, view] = problem.mirror
+    f = np.zeros((problem.n_observed, problem.n_views, 3))
+    f[slot, view] = values
+    w = np.zeros((problem.n_observed, problem.n_views))
+    w[slot, view] = problem.weight
+    lg = fit_sh(d, f, w, lmax, regulariser, lam, workers=workers, penalise_dc=penalise_dc)
+
+    out = np.empty((problem.n_pairs, lmax + 1, 3), dtype=problem.dtype)
+    degree_starts = np.arange(lmax + 1) ** 2
+    n_chunks = -(-problem.n_pairs // _EVAL_CHUNK)
+
+    def evaluate(i: int) -> None:
+        a, b = i * _EVAL_CHUNK, min(problem.n_pairs, (i + 1) * _EVAL_CHUNK)
+        y = real_sh(problem.mirror[a:b], lmax)  # (n, (lmax+1)^2)
+        out[a:b] = np.add.reduceat(y[:, :, None] * lg[slot[a:b]], degree_starts, axis=1)
+
+    if workers == 1:
+        _run(None, evaluate, n_chunks)
+    else:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            _run(pool, evaluate, n_chunks)
+    return out
+
+
+def _check_light(light: np.ndarray, problem: Problem) -> np.ndarray:
+    p = np.asarray(light)
+    _check_shape(p, "light", (problem.n_pairs, None, 3))
+    _check_finite(p, "light")
+    return p
+
+
+def _pad_light(light: np.ndarray, problem: Problem) -> list[np.ndarray]:
+    """Flat light terms (N, L, 3) -> per chunk (L, 3, k, t), 0 in padding."""
+    out = []
+    for ch in problem.chunks:
+        p = light[ch.pairs].astype(problem.dtype)  # (k, t, L, 3)
+        p *= ch.valid[:, :, None, None]
+        out.append(np.ascontiguousarray(p.transpose(2, 3, 0, 1)))
+    return out
+
+
+# --------------------------------------------------------------------------
+# model, loss and gradient
+# --------------------------------------------------------------------------
+def _lobe_filter(alpha: np.ndarray, n_degrees: int) -> np.ndarray:
+    """``exp(-(alpha l)^2)`` for l = 0..n_degrees-1, shape (n_degrees, t).
+
+    As ``q^(l^2)`` with ``q = exp(-alpha^2)`` and ``q^(l^2) = q^((l-1)^2) q^(2l-1)``:
+    one exp per texel instead of one per degree (exp dominated the per-texel cost).
+    """
+    q = np.exp(-alpha * alpha)
+    q2 = q * q
+    out = np.empty((n_degrees,) + alpha.shape)
+    out[0] = 1.0
+    step = q  # q^(2l - 1)
+    for l in range(1, n_degrees):
+        out[l] = out[l - 1] * step
+        step = step * q2
+    return out
+
+
+@dataclass(frozen=True)
+class _TexelTerms:
+    """Per-texel quantities of one chunk's texels (texel axis last, contiguous)."""
+
+    alpha: np.ndarray  # (t,) dtype
+    filters: np.ndarray  # (2, L, t) dtype: exp(-(alpha l)^2) and its derivative by alpha
+    diffuse: np.ndarray  # (3, 1, t) dtype, (1 - m) base E / pi
+    r0: np.ndarray  # (3, 1, t) dtype
+
+
+def _texel_terms(xc: np.ndarray, e_pi: np.ndarray, n_degrees: int, ftype: np.dtype) -> _TexelTerms:
+    """`_TexelTerms` of parameters ``xc`` (5, t) with ``E / pi`` ``e_pi`` (3, t).
+
+    Computed per chunk: small C-contiguous arrays broadcast several times
+    faster than strided slices of texture-sized ones.
+    """
+    base, r, m = xc[:3], xc[3], xc[4]
+    alpha = alpha_from_roughness(r)[0]
+    filt = _lobe_filter(alpha, n_degrees)
+    l2 = np.arange(n_degrees, dtype=np.float64)[:, None] ** 2
+    filters = np.empty((2, n_degrees, xc.shape[1]), dtype=ftype)
+    filters[0] = filt
+    filters[1] = -2.0 * alpha * l2 * filt
+    return _TexelTerms(
+        alpha=alpha.astype(ftype),
+        filters=filters,
+        diffuse=((1.0 - m) * base * e_pi).astype(ftype)[:, None, :],
+        r0=(R0_DIELECTRIC * (1.0 - m) + m * base).astype(ftype)[:, None, :],
+    )
+
+
+def _chunk_model(tt: _TexelTerms, ch: _Chunk, p: np.ndarray, masking: bool) -> tuple[np.ndarray, ...]:
+    """Model radiance (3, k, t) of one chunk and the intermediates its gradient reuses."""
+    # one pass over P for Spec and dSpec/dalpha (the pass is the costliest step)
+    spec, dspec = np.einsum("alt,lckt->ackt", tt.filters, p)
+    fresnel = tt.r0 * ch.one_minus_schlick
+    fresnel += ch.schlick
+    if masking:
+        s = np.sqrt(1 + tt.alpha * tt.alpha * ch.tan2)
+        g1 = 2 / (1 + s)
+        gspec = spec * g1
+    else:
+        s = g1 = None
+        gspec = spec
+    model = fresnel * gspec
+    model += tt.diffuse
+    return model, spec, dspec, gspec, fresnel, s, g1
+
+
+def _chunk_loss_and_gradient(
+    xp: np.ndarray, problem: Problem, c: int, p: np.ndarray, masking: bool
+) -> tuple[float, np.ndarray]:
+    """L1 sum over chunk c and its gradient with respect to the chunk's texels (5, t).
+
+    With ``g = sign(B_model - B_obs)`` per pair and channel (0 in padding),
+    the per-texel sums ``A = sum_k g``, ``S = sum_k g (1 - c5) G1m Spec``
+    and ``D = sum_kc g F d(G1m Spec)/dalpha`` give the gradient
+    (`loss_and_gradient`).
+    """
+    ch = problem.chunks[c]
+    xc = np.ascontiguousarray(xp[ch.lo : ch.hi].T)  # (5, t)
+    e_pi = problem.irradiance_pi[:, ch.lo : ch.hi]
+    tt = _texel_terms(xc, e_pi, p.shape[0], problem.dtype)
+    model, spec, dspec, gspec, fresnel, s, g1 = _chunk_model(tt, ch, p, masking)
+    res = model
+    res -= ch.radiance
+    g = np.sign(res)
+    g *= ch.valid
+    loss = float(np.vdot(g, res))  # sum |res| over real pairs
+    sum_a = g.sum(axis=1, dtype=np.float64)
+    sum_s = np.einsum("ckt,kt,ckt->ct", g, ch.one_minus_schlick, gspec).astype(np.float64)
+    if masking:
+        # dG1/dalpha = -2 alpha tan^2 / (s (1 + s)^2) = -G1^2 alpha tan^2 / (2 s)
+        dg1 = -(g1 * g1) * tt.alpha * ch.tan2 / (2 * s)
+        dgspec = spec * dg1
+        dspec *= g1
+        dgspec += dspec
+    else:
+        dgspec = dspec
+    g *= fresnel
+    sum_d = np.einsum("ckt,ckt->t", g, dgspec).astype(np.float64)
+
+    base, m = xc[:3], xc[4]
+    grad = np.empty_like(xc)
+    # B = (1 - m) base E / pi + (R0 (1 - c5) + c5) G1m Spec,  R0 = 0.04 (1 - m) + m base
+    grad[:3] = (1.0 - m) * e_pi * sum_a + m * sum_s
+    grad[3] = sum_d * alpha_from_roughness(xc[3])[1]
+    grad[4] = (-base * e_pi * sum_a + (base - R0_DIELECTRIC) * sum_s).sum(axis=0)
+    return loss, grad
+
+
+def _tv(xp: np.ndarray, op: sparse.csr_matrix, adjoint: sparse.csr_matrix) -> tuple[float, np.ndarray]:
+    """TV and its gradient with a difference operator and its transpose (see `total_variation`)."""
+    if op.shape[0] == 0:
+        return 0.0, np.zeros_like(xp)
+    diff = op @ xp
+    # sign(0) = 0: a flat pair pulls neither texel
+    return float(np.abs(diff).sum() / op.shape[0]), adjoint @ (np.sign(diff) / op.shape[0])
+
+
+def total_variation(x: np.ndarray, neighbours: np.ndarray) -> tuple[float, np.ndarray]:
+    """Mean absolute difference of adjacent texels, summed over parameter channels.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Shape ``(T, Q)``, parameter channels per texel.
+    neighbours : numpy.ndarray
+        Shape ``(M, 2)``, adjacent texel pairs (`atlas_neighbours`).
+
+    Returns
+    -------
+    tv : float
+        ``(1/M) sum_pairs sum_q |x_iq - x_jq|`` (0 without pairs).
+    grad : numpy.ndarray
+        Shape ``(T, Q)``, float64, its (sub)gradient with ``sign(0) = 0``.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    _check_shape(x, "x", (None, None))
+    nb = np.asarray(neighbours)
+    _check_shape(nb, "neighbours", (None, 2))
+    if nb.size and (nb.min() < 0 or nb.max() >= x.shape[0]):
+        raise ValueError(f"neighbours must index the {x.shape[0]} rows of x, got {nb.min()}..{nb.max()}")
+    op = _difference_operator(nb, x.shape[0])
+    return _tv(x, op, op.T.tocsr())
+
+
+def _loss_and_gradient(
+    xp: np.ndarray, problem: Problem, light: list[np.ndarray], masking: bool, tv_weight: float, pool: Executor | None
+) -> tuple[float, np.ndarray]:
+    """`loss_and_gradient` of internal-order ``xp`` with padded light terms (`_pad_light`)."""
+    parts = _run(pool, lambda c: _chunk_loss_and_gradient(xp, problem, c, light[c], masking), len(light))
+    scale = 1.0 / (3.0 * problem.n_pairs)  # mean over pairs and channels
+    grad = np.zeros_like(xp)
+    grad[: problem.n_observed] = np.concatenate([p[1] for p in parts], axis=1).T * scale
+    loss = sum(p[0] for p in parts) * scale
+    if tv_weight > 0:
+        tv, tv_grad = _tv(xp, problem.tv_operator, problem.tv_adjoint)
+        loss += tv_weight * tv
+        grad += tv_weight * tv_grad
+    return float(loss), grad
+
+
+def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool) -> np.ndarray:
+    """Model radiance of every observation.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Shape ``(T, 5)``, packed parameters (`pack_params`).
+    problem : Problem
+        Observations.
+    light : numpy.ndarray
+        Shape ``(N, L, 3)``: `light_terms` (its ``shadowing`` picks the variant).
+    masking : bool
+        Apply ``G1(theta_o)`` to the specular term.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(T, K, 3)``, float64, radiance; 0 where not observed.
+    """
+    x = _check_x(x, problem)
+    p = _check_light(light, problem)
+    xp = x[problem.perm]
+    out = np.zeros((problem.n_texels, problem.n_views, 3))
+    for ch, pc in zip(problem.chunks, _pad_light(p, problem)):
+        xc = np.ascontiguousarray(xp[ch.lo : ch.hi].T)
+        tt = _texel_terms(xc, problem.irradiance_pi[:, ch.lo : ch.hi], p.shape[1], problem.dtype)
+        model = _chunk_model(tt, ch, pc, masking)[0]
+        real = ch.valid > 0
+        pairs = ch.pairs[real]
+        out[problem.pair_texel[pairs], problem.pair_view[pairs]] = np.moveaxis(model, 0, -1)[real]
+    return out
+
+
+def loss_and_gradient(
+    x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float = 1e-3, workers: int = 1
+) -> tuple[float, np.ndarray]:
+    """Objective of METHOD section 5 and its analytic gradient, light terms held fixed.
+
+    ``loss = mean_{pairs, c} |B - B_obs| + tv_weight * TV`` (module docstring).
+    With ``g = sign(B - B_obs) / (3 N)`` and ``c5 = (1 - cos theta_o)^5``:
+
+    - ``dL/dbase_c = sum_k g [(1 - m) E_c / pi + m (1 - c5) G1m Spec_c]``;
+    - ``dL/dm = sum_kc g [-base_c E_c / pi + (base_c - 0.04)(1 - c5) G1m Spec_c]``;
+    - ``dL/dr = 2 r sum_kc g F_c [G1m' Spec_c + G1m sum_l f_l' P_lc]`` with
+      ``G1m' = dG1/dalpha = -2 alpha tan^2 / (s (1 + s)^2)``,
+      ``s = sqrt(1 + alpha^2 tan^2)``, ``f_l' = -2 alpha l^2 exp(-(alpha l)^2)``
+      (where alpha is clamped at `ALPHA_MIN`, ``2 r`` becomes ``2 sqrt(ALPHA_MIN)``:
+      a straight-through derivative, see `alpha_from_roughness`);
+
+    plus ``tv_weight`` times the TV gradient (`total_variation`).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Shape ``(T, 5)``, packed parameters.
+    problem : Problem
+        Observations.
+    light : numpy.ndarray
+        Shape ``(N, L, 3)``, `light_terms`.
+    masking : bool
+        Apply ``G1(theta_o)``.
+    tv_weight : float
+        Weight of TV, ``>= 0``.
+    workers : int
+        Threads.
+
+    Returns
+    -------
+    loss : float
+    grad : numpy.ndarray
+        Shape ``(T, 5)``, float64.
+    """
+    x = _check_x(x, problem)
+    p = _check_light(light, problem)
+    tv_weight = float(tv_weight)
+    if not (np.isfinite(tv_weight) and tv_weight >= 0):
+        raise ValueError(f"tv_weight must be a finite number >= 0, got {tv_weight!r}")
+    workers = _check_int(workers, "workers", 1)
+    padded = _pad_light(p, problem)
+    xp = x[problem.perm]
+    if workers == 1:
+        loss, grad_p = _loss_and_gradient(xp, problem, padded, masking, tv_weight, None)
+    else:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            loss, grad_p = _loss_and_gradient(xp, problem, padded, masking, tv_weight, pool)
+    grad = np.empty_like(grad_p)
+    grad[problem.perm] = grad_p
+    return loss, grad
+
+
+# --------------------------------------------------------------------------
+# optimisation
+# --------------------------------------------------------------------------
+def adam_step(
+    x: np.ndarray,
+    grad: np.ndarray,
+    m1: np.ndarray,
+    m2: np.ndarray,
+    step: int,
+    lr: float,
+    betas: tuple[float, float] = (0.9, 0.999),
+    eps: float = 1e-8,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One Adam update (Kingma and Ba 2015) followed by clamping to [0, 1].
+
+    Parameters
+    ----------
+    x, grad, m1, m2 : numpy.ndarray
+        Same shape: parameters, gradient, first and second moment estimates.
+    step : int
+        1-based step number (bias correction).
+    lr : float
+        Learning rate.
+    betas : tuple of float
+        Moment decay rates.
+    eps : float
+        Denominator offset.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        New parameters (in [0, 1]), first and second moments.
+    """
+    step = _check_int(step, "step", 1)
+    b1, b2 = betas
+    m1 = b1 * m1 + (1.0 - b1) * grad
+    m2 = b2 * m2 + (1.0 - b2) * grad * grad
+    update = lr * (m1 / (1.0 - b1**step)) / (np.sqrt(m2 / (1.0 - b2**step)) + eps)
+    return np.clip(x - update, 0.0, 1.0), m1, m2
+
+
+def optimise(
+    radiance: np.ndarray,
+    weight: np.ndarray,
+    wo_local: np.ndarray,
+    incoming: np.ndarray,
+    irradiance: np.ndarray,
+    texel: np.ndarray,
+    resolution: int,
+    init: Mapping[str, np.ndarray] | None = None,
+    method: str = "freq",
+    settings: OptimiseSettings = OptimiseSettings(),
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Per-texel principled parameters by Adam on the L1 + TV objective.
+
+    Parameters
+    ----------
+    radiance, weight, wo_local, incoming : numpy.ndarray
+        Shapes ``(T, K, 3)``, ``(T, K)``, ``(T, K, 3)``, ``(T, K, 3)``: the
+        observations (README "Observations").
+    irradiance : numpy.ndarray
+        Shape ``(T, 3)``: E at the texel normals
+        (:func:`freqbrdf.spectral.irradiance_at_normals`).
+    texel : numpy.ndarray
+        Shape ``(T,)``: flat atlas indices ``i * R + j`` (for TV).
+    resolution : int
+        Atlas size R.
+    init : mapping, optional
+        ``base_color`` (T, 3), ``roughness`` (T,), ``metallic`` (T,) in [0, 1],
+        e.g. the spectrum-only estimate; default 0.5 everywhere.
+    method : str
+        A key of `METHODS`.
+    settings : OptimiseSettings
+        Optimiser and SH fit settings.
+
+    Returns
+    -------
+    params : dict of numpy.ndarray
+        ``base_color`` (T, 3), ``roughness`` (T,), ``metallic`` (T,), float64
+        in [0, 1]. Texels without observations move only through TV.
+    loss_curve : numpy.ndarray
+        Shape ``(iterations,)``: the objective at the start of each iteration
+        (after that iteration's refit, if any, so it may jump at refits).
+    """
+    shadowing, masking = _check_method(method)
+    if not isinstance(settings, OptimiseSettings):
+        raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
+    problem = build_problem(
+        radiance, weight, wo_local, incoming, irradiance, texel, resolution, settings.dtype, settings.chunk_pairs
+    )
+    x = np.full((problem.n_texels, _N_PARAMS), 0.5) if init is None else pack_params(init, problem.n_texels)
+    xp = x[problem.perm]  # internal order (see Problem)
+    m1 = np.zeros_like(xp)
+    m2 = np.zeros_like(xp)
+    curve = np.empty(settings.iterations)
+    roughness = np.empty(problem.n_texels)
+    light: list[np.ndarray] = []
+    pool = ThreadPoolExecutor(max_workers=settings.workers) if settings.workers > 1 else None
+    try:
+        for it in range(settings.iterations):
+            # without shadowing the fitted light does not depend on alpha: one fit is exact
+            if not light or (shadowing and it % settings.refit_every == 0):
+                roughness[problem.perm] = xp[:, 3]
+                flat = light_terms(
+                    roughness, problem, shadowing, settings.lmax, settings.regulariser, settings.lam,
+                    settings.penalise_dc, settings.workers,
+                )
+                light = _pad_light(flat, problem)
+                del flat
+            curve[it], grad = _loss_and_gradient(xp, problem, light, masking, settings.tv_weight, pool)
+            xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    x = np.empty_like(xp)
+    x[problem.perm] = xp
+    return unpack_params(x), curve
