@@ -31,6 +31,7 @@ include: "rules/captures.smk"
 include: "rules/exchange.smk"
 include: "rules/observations.smk"
 include: "rules/frequency.smk"
+include: "rules/estimate.smk"
 
 
 rule all:

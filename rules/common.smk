@@ -11,6 +11,7 @@ ENVS = list(config["envs"])
 CAPTURE_ENVS = list(config["capture_envs"])
 SPLITS = ["train", "test"]
 POSES = config["poses"]["source"]
+METHODS = list(config["methods"])
 # Every (object, env) pair that has a training capture.
 CAPTURES = [(o, e) for o in SYNTHETIC_OBJECTS for e in CAPTURE_ENVS] + [
     (name, capture["env"]) for name, capture in REAL_CAPTURES.items()
@@ -21,6 +22,7 @@ wildcard_constraints:
     env="|".join(ENVS + [capture["env"] for capture in REAL_CAPTURES.values()]),
     split="|".join(SPLITS),
     poses="gt|colmap",
+    method="spectrum|freq|freq_noshadow|freq_nomask|rh2001",
 
 
 LIBRARY = Path(workflow.basedir) / "workflow" / "freqbrdf"
@@ -80,6 +82,6 @@ def benchmark_outputs():
     outputs += expand("results/captures/{object}/{env}/train", object=SYNTHETIC_OBJECTS, env=CAPTURE_ENVS)
     outputs += expand("results/captures/{object}/{env}/test", object=SYNTHETIC_OBJECTS, env=ENVS)
     outputs += [f"results/observations/{o}/{e}/{POSES}" for o, e in CAPTURES]
-    outputs += [f"results/estimates/{o}/{e}/{POSES}/spectrum" for o, e in CAPTURES]
+    outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for o, e in CAPTURES for m in METHODS]
     outputs += [f"results/entropy/{o}/{e}/{POSES}" for o, e in CAPTURES]
     return outputs

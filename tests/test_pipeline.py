@@ -136,3 +136,15 @@ def test_frequency_stage_outputs(run):
         texture = read_exr(run / f"results/estimates/sphere/studio/gt/spectrum/{name}.exr")
         assert texture.shape[:2] == (32, 32) and (texture.ndim == 2) == (channels == 1)
         assert texture.min() >= 0.0 and texture.max() <= 1.0
+
+
+def test_every_method_writes_loadable_textures_and_a_decreasing_loss(run):
+    import pandas as pd
+
+    for method in ("freq", "freq_noshadow", "freq_nomask", "rh2001"):
+        estimate = run / f"results/estimates/sphere/studio/gt/{method}"
+        for name in ("base_color", "roughness", "metallic"):
+            texture = read_exr(estimate / f"{name}.exr")
+            assert texture.shape[:2] == (32, 32) and 0.0 <= texture.min() and texture.max() <= 1.0
+        loss = pd.read_csv(estimate / "loss.tsv", sep="\t")["loss"].to_numpy()
+        assert len(loss) == 150 and loss[-1] < 0.8 * loss[0]
