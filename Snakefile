@@ -32,6 +32,7 @@ include: "rules/exchange.smk"
 include: "rules/observations.smk"
 include: "rules/frequency.smk"
 include: "rules/estimate.smk"
+include: "rules/evaluate.smk"
 
 
 rule all:

@@ -12,8 +12,9 @@ CAPTURE_ENVS = list(config["capture_envs"])
 SPLITS = ["train", "test"]
 POSES = config["poses"]["source"]
 METHODS = list(config["methods"])
-# Every (object, env) pair that has a training capture.
-CAPTURES = [(o, e) for o in SYNTHETIC_OBJECTS for e in CAPTURE_ENVS] + [
+# Every (object, env) pair that has a training capture; synthetic ones have ground truth.
+SYNTHETIC_CAPTURES = [(o, e) for o in SYNTHETIC_OBJECTS for e in CAPTURE_ENVS]
+CAPTURES = SYNTHETIC_CAPTURES + [
     (name, capture["env"]) for name, capture in REAL_CAPTURES.items()
 ]
 
@@ -84,4 +85,5 @@ def benchmark_outputs():
     outputs += [f"results/observations/{o}/{e}/{POSES}" for o, e in CAPTURES]
     outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for o, e in CAPTURES for m in METHODS]
     outputs += [f"results/entropy/{o}/{e}/{POSES}" for o, e in CAPTURES]
+    outputs.append("results/tables/parameter_mse.tsv")
     return outputs

@@ -148,3 +148,14 @@ def test_every_method_writes_loadable_textures_and_a_decreasing_loss(run):
             assert texture.shape[:2] == (32, 32) and 0.0 <= texture.min() and texture.max() <= 1.0
         loss = pd.read_csv(estimate / "loss.tsv", sep="\t")["loss"].to_numpy()
         assert len(loss) == 150 and loss[-1] < 0.8 * loss[0]
+
+
+def test_parameter_mse_table_covers_every_method(run):
+    import pandas as pd
+
+    table = pd.read_csv(run / "results/tables/parameter_mse.tsv", sep="\t")
+    assert set(table.columns) == {"object", "env", "poses", "method", "metric", "value"}
+    assert set(table.method) == {"spectrum", "freq", "freq_noshadow", "freq_nomask", "rh2001"}
+    assert set(table.object) == {"sphere"}  # the re-imported copy has no ground truth
+    average = table[table.metric == "mse_average"]
+    assert len(average) == 5 and average.value.between(0.0, 1.0).all()
