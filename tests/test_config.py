@@ -40,6 +40,7 @@ def test_shipped_configs_validate(repo, schema, default, preset):
         (lambda c: c.update(capture_envs=["beach"]), r"config key capture_envs: \['beach'\] not defined under envs"),
         (lambda c: c["render"].update(fov_deg=10.0), r"config key render\.fov_deg: 10.0 degrees is too narrow"),
         (lambda c: c.pop("seed"), r"'seed' is a required property"),
+        (lambda c: c["poses"].update(source="colmap"), r"config key poses\.source: 'colmap' \(pycolmap SfM\) is not available yet"),
         (lambda c: c.update(real_captures={"torus": {"dir": "x", "env": "e"}}), r"real_captures\.torus: the name is taken"),
         (lambda c: c.update(real_captures={"pot": {"dir": "x", "env": "sunny"}}), r"real_captures\.pot\.env: 'sunny' is taken"),
         (lambda c: c.update(real_captures={"pot": {"dir": "x"}}), r"config key real_captures\.pot: 'env' is a required property"),
