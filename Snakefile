@@ -37,5 +37,5 @@ include: "rules/evaluate.smk"
 
 rule all:
     input:
-        benchmark_outputs(),
+        final_outputs(),
     default_target: True

@@ -54,12 +54,14 @@ def capture_dir(wildcards, split):
 
 
 def mesh_file(wildcards):
+    """The object's mesh: procedural, or imported with a real capture."""
     if wildcards.object in REAL_CAPTURES:
         return f"results/imports/{wildcards.object}/mesh.ply"
     return f"results/objects/{wildcards.object}/mesh.ply"
 
 
 def envmap_file(wildcards):
+    """The environment map lighting a capture: procedural, or imported with a real capture."""
     if wildcards.object in REAL_CAPTURES:
         return f"results/imports/{wildcards.object}/envmap.exr"
     return f"results/envs/{wildcards.env}.exr"
@@ -73,8 +75,8 @@ def pose_dir(wildcards):
     return f"results/poses/{wildcards.object}/{wildcards.env}/colmap"
 
 
-def benchmark_outputs():
-    """Every final output of the stages defined so far."""
+def final_outputs():
+    """Every final output of the workflow (the targets of rule all)."""
     outputs = []
     for name in SYNTHETIC_OBJECTS:
         outputs += list(object_files(name).values())
