@@ -73,7 +73,7 @@ import numpy as np
 from scipy import sparse
 
 from .sh import real_sh
-from .spectral import REGULARISERS, R0_DIELECTRIC, fit_sh, mirror_directions
+from .spectral import R0_DIELECTRIC, REGULARISERS, _check_int, fit_sh, mirror_directions
 
 __all__ = [
     "METHODS",
@@ -115,14 +115,6 @@ _EVAL_CHUNK = 16384  # observations per chunk when evaluating the light terms (Y
 # --------------------------------------------------------------------------
 # settings and validation
 # --------------------------------------------------------------------------
-def _check_int(value: object, name: str, minimum: int) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an int, got {type(value).__name__} {value!r}")
-    if int(value) < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {value}")
-    return int(value)
-
-
 def _check_shape(a: np.ndarray, name: str, shape: tuple[int | None, ...]) -> None:
     """``shape`` entries of None match any size."""
     if a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape)):
