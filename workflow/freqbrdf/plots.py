@@ -181,13 +181,13 @@ def texel_spectra_figure(path: str | os.PathLike, examples: Mapping[str, dict]) 
     _save(fig, path)
 
 
-def loss_figure(path: str | os.PathLike, curve: np.ndarray, title: str) -> None:
-    """Optimisation loss per iteration (log scale; jumps mark refits of the light)."""
+def loss_figure(path: str | os.PathLike, curve: np.ndarray, title: str, ylabel: str = "L1 + TV loss") -> None:
+    """Optimisation loss per iteration (log scale; for ``freq``, jumps mark refits of the light)."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(5, 3.2))
     ax.semilogy(np.arange(len(curve)), curve)
     ax.set_xlabel("iteration")
-    ax.set_ylabel("L1 + TV loss")
+    ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.grid(alpha=0.3)
     _save(fig, path)

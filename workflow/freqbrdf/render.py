@@ -92,6 +92,7 @@ def capture_scene(
     fov_x_deg: float,
     spp: int,
     max_depth: int,
+    integrator: str = "path",
 ):
     """The object lit by an environment map, seen by one movable camera.
 
@@ -110,16 +111,22 @@ def capture_scene(
     spp : int
         Samples per pixel.
     max_depth : int
-        Path length limit of the ``path`` integrator (-1: unlimited).
+        Path length limit of the integrator (-1: unlimited).
+    integrator : {"path", "prb"}
+        ``path`` renders the captures; ``prb`` (path replay backpropagation)
+        renders the same light transport and also differentiates it, for
+        inverse rendering (:mod:`freqbrdf.inverse`).
 
     Returns
     -------
     mitsuba.Scene
     """
+    if integrator not in ("path", "prb"):
+        raise ValueError(f"capture_scene: integrator must be 'path' or 'prb', got {integrator!r}")
     return mi.load_dict(
         {
             "type": "scene",
-            "integrator": {"type": "path", "max_depth": int(max_depth)},
+            "integrator": {"type": integrator, "max_depth": int(max_depth)},
             "emitter": {"type": "envmap", "bitmap": mi.Bitmap(np.ascontiguousarray(envmap, dtype=np.float32))},
             "object": {"type": "ply", "filename": str(mesh), "bsdf": bsdf},
             "sensor": _sensor(mi, width, height, fov_x_deg, spp),

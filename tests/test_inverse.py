@@ -1,0 +1,239 @@
+"""Differentiable-rendering baseline (freqbrdf.inverse): tiny optimisations on a known material."""
+
+import copy
+
+import numpy as np
+import pytest
+import yaml
+
+from freqbrdf import inverse as inv
+from freqbrdf.cameras import Cameras, intrinsics, look_at, mitsuba_to_world
+from freqbrdf.config import ConfigError, check_config
+from freqbrdf.meshes import make_mesh, write_ply
+from freqbrdf.render import capture_scene, mask_scene, principled_bsdf, render_views
+
+SIZE = 24  # pixels per side of the test views
+TEXELS = 8  # texels per side of the test textures
+FOV = 35.0
+# A red, fairly smooth dielectric: far from the 0.5 start in every parameter.
+TRUTH = {"base_color": (0.9, 0.15, 0.1), "roughness": 0.3, "metallic": 0.0}
+
+
+def uniform_textures(base_color, roughness, metallic, size=TEXELS):
+    return {
+        "base_color": np.broadcast_to(np.asarray(base_color, np.float32), (size, size, 3)).copy(),
+        "roughness": np.full((size, size), roughness, np.float32),
+        "metallic": np.full((size, size), metallic, np.float32),
+    }
+
+
+def ring_cameras(size=SIZE, cx=None, cy=None):
+    """Six views around the sphere (elevation +-40 degrees), so every texel is seen."""
+    eyes = [4.0 * np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
+            for el in np.radians([40.0, -40.0]) for az in np.radians([0.0, 120.0, 240.0])]
+    K = intrinsics(size, size, FOV)
+    K[0, 2] = size / 2 if cx is None else cx
+    K[1, 2] = size / 2 if cy is None else cy
+    return Cameras(K=np.repeat(K[None], len(eyes), 0), world_to_camera=np.stack([look_at(e) for e in eyes]),
+                   width=size, height=size, names=tuple(f"{k:03d}" for k in range(len(eyes))))
+
+
+def lamps():
+    """Dim ambient light and nine small lamps all around, so that every texel
+    mirrors some lamp into some view: roughness and metallic are observable."""
+    env = np.full((16, 32, 3), 0.2, np.float32)
+    for row, col in ((3, 2), (3, 12), (3, 22), (8, 7), (8, 17), (8, 27), (12, 2), (12, 12), (12, 22)):
+        env[row : row + 2, col : col + 3] = 5.0
+    return env
+
+
+@pytest.fixture(scope="module")
+def capture(mi, tmp_path_factory):
+    """Path-traced views of a sphere with the uniform TRUTH material, and their coverage."""
+    mesh = tmp_path_factory.mktemp("inverse") / "sphere.ply"
+    write_ply(mesh, make_mesh("sphere"))
+    cameras = ring_cameras()
+    env = lamps()
+    frame = dict(width=SIZE, height=SIZE, fov_x_deg=FOV)
+    to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
+    bsdf = principled_bsdf(mi, **uniform_textures(**TRUTH))
+    scene = capture_scene(mi, mesh, bsdf, env, spp=256, max_depth=4, **frame)
+    images = np.stack(list(render_views(mi, scene, to_world, seed=1)))
+    coverage = np.stack([c[..., 0] for c in render_views(mi, mask_scene(mi, mesh, spp=16, **frame), to_world, seed=1)])
+    return {"mesh": mesh, "cameras": cameras, "env": env, "images": images, "coverage": coverage}
+
+
+def subset(capture, views):
+    c = capture["cameras"]
+    cameras = Cameras(K=c.K[views], world_to_camera=c.world_to_camera[views], width=c.width, height=c.height,
+                      names=tuple(c.names[k] for k in views))
+    return cameras, capture["images"][views], capture["coverage"][views]
+
+
+def run(mi, capture, start, views=(0,), **settings):
+    cameras, images, coverage = subset(capture, list(views))
+    reports = []
+    result = inv.optimise_textures(mi, capture["mesh"], capture["env"], cameras, images, coverage, start,
+                                   inv.InverseSettings(max_depth=4, **settings), progress=reports.append)
+    return result, reports
+
+
+def parameter_mse(textures):
+    truth = uniform_textures(**TRUTH)
+    return {n: float(np.mean((textures[n] - truth[n]) ** 2)) for n in inv.TEXTURES}
+
+
+def test_two_steps_lower_the_loss_and_change_the_textures(mi, capture):
+    start = inv.constant_textures(TEXELS)
+    result, reports = run(mi, capture, start, epochs=2, spp=32, lr=0.1)
+    assert len(result.loss) == 2 and result.loss[1] < result.loss[0]
+    assert [r.epoch for r in reports] == [1, 2] and reports[1].elapsed_s >= reports[0].elapsed_s > 0
+    for name in inv.TEXTURES:
+        assert result.textures[name].shape == start[name].shape and result.textures[name].dtype == np.float32
+    # Adam's first step moves every seen texel by about lr: the red channel up, green and blue down.
+    change = result.textures["base_color"] - start["base_color"]
+    assert change[..., 0].max() > 0.05 and change[..., 1].min() < -0.05 and change[..., 2].min() < -0.05
+
+
+def test_recovers_a_uniform_material_from_the_constant_start(mi, capture):
+    start = inv.constant_textures(TEXELS)
+    result, reports = run(mi, capture, start, views=range(6), epochs=16, spp=16, lr=0.05)
+    before, after = parameter_mse(start), parameter_mse(result.textures)
+    # Measured: base colour 0.148 -> 0.002, roughness 0.040 -> 0.019, metallic 0.25 -> 0.008.
+    assert after["base_color"] < before["base_color"] / 20
+    assert after["metallic"] < before["metallic"] / 5
+    assert after["roughness"] < before["roughness"]
+    assert np.mean(list(after.values())) < np.mean(list(before.values())) / 5
+    assert np.median(result.textures["roughness"]) == pytest.approx(TRUTH["roughness"], abs=0.1)
+    assert result.epoch_loss[-1] < 0.6 * result.epoch_loss[0]
+    np.testing.assert_allclose([r.loss for r in reports], result.epoch_loss)
+    # Every step frees its graph: after the first epoch (kernels compiled) memory stays flat.
+    assert reports[-1].resident_mb - reports[1].resident_mb < 10
+
+
+def test_textures_are_clamped_to_the_unit_interval_after_every_step(mi, capture):
+    # A huge learning rate pushes the first step far past the bounds: base colour
+    # up past 1 (the red channel), metallic down past 0.
+    start = uniform_textures((0.9, 0.9, 0.9), 0.9, 0.1)
+    result, _ = run(mi, capture, start, epochs=1, spp=16, lr=0.5)
+    for name in inv.TEXTURES:
+        assert result.textures[name].min() >= 0.0 and result.textures[name].max() <= 1.0
+    assert result.textures["base_color"][..., 0].max() == 1.0
+    assert result.textures["metallic"].min() == 0.0
+
+
+def test_same_seed_same_result_other_seed_other_noise(mi, capture):
+    start = inv.constant_textures(TEXELS)
+    first, _ = run(mi, capture, start, views=(0, 3), epochs=1, spp=8, lr=0.05, seed=7)
+    again, _ = run(mi, capture, start, views=(0, 3), epochs=1, spp=8, lr=0.05, seed=7)
+    other, _ = run(mi, capture, start, views=(0, 3), epochs=1, spp=8, lr=0.05, seed=8)
+    np.testing.assert_array_equal(first.view, again.view)
+    np.testing.assert_allclose(first.loss, again.loss, rtol=1e-5)
+    # Two threads sum the texel gradients by atomics in varying order, and Adam
+    # magnifies that rounding on texels whose gradient is almost 0 (one thread:
+    # bit-identical); a step moves texels by lr = 0.05.
+    for name in inv.TEXTURES:
+        np.testing.assert_allclose(first.textures[name], again.textures[name], atol=0.01)
+    assert not np.allclose(first.loss, other.loss, rtol=1e-4)
+
+
+def test_view_order_visits_every_view_once_per_epoch():
+    orders = [inv.view_order(3, epoch, 10) for epoch in range(3)]
+    assert all(sorted(o) == list(range(10)) for o in orders)
+    assert not np.array_equal(orders[0], orders[1])
+    np.testing.assert_array_equal(orders[2], inv.view_order(3, 2, 10))
+
+
+def test_sensor_reproduces_an_off_centre_principal_point(mi, capture):
+    # Seen from a camera looking at its centre, the sphere's silhouette is a disc
+    # centred on the principal point (cx, cy), wherever K puts it.
+    size, cx, cy = 48, 27.0, 20.5
+    cameras = ring_cameras(size, cx, cy)
+    scene = mask_scene(mi, capture["mesh"], width=size, height=size, fov_x_deg=FOV, spp=16)
+    params = mi.traverse(scene)
+    for key, value in inv.sensor_views(mi, cameras)[0].items():
+        params[key] = value
+    params.update()
+    coverage = np.array(mi.render(scene, params, spp=16))[..., 0]
+    rows, cols = np.indices(coverage.shape)
+    assert (coverage * (cols + 0.5)).sum() / coverage.sum() == pytest.approx(cx, abs=0.15)
+    assert (coverage * (rows + 0.5)).sum() / coverage.sum() == pytest.approx(cy, abs=0.15)
+    f = intrinsics(size, size, FOV)[0, 0]
+    radius = f * np.tan(np.arcsin(1.0 / 4.0))
+    assert coverage.sum() == pytest.approx(np.pi * radius**2, rel=0.03)
+
+
+def test_non_square_pixels_are_refused_naming_the_view():
+    cameras = ring_cameras()
+    K = cameras.K.copy()
+    K[2, 1, 1] *= 1.1
+    bad = Cameras(K=K, world_to_camera=cameras.world_to_camera, width=SIZE, height=SIZE, names=cameras.names)
+    with pytest.raises(ValueError, match=r"view 002: K .* non-square pixels"):
+        inv.sensor_intrinsics(bad)
+
+
+def test_image_loss_and_total_variation_match_their_formulas(mi):
+    rng = np.random.default_rng(0)
+    image, reference = rng.uniform(0.0, 3.0, (2, 5, 4, 3)).astype(np.float32)
+    weight = rng.uniform(0.0, 1.0, (5, 4, 1)).astype(np.float32)
+    for kind, distance in (("l1log", np.abs(np.log1p(image) - np.log1p(reference))), ("l2", (image - reference) ** 2)):
+        expected = (weight * distance).sum() / (3 * weight.sum())
+        value = inv.image_loss(mi, mi.TensorXf(image), mi.TensorXf(reference), mi.TensorXf(weight), kind)
+        assert float(value.array[0]) == pytest.approx(expected, rel=1e-5)
+    a, b = rng.uniform(0.0, 1.0, (6, 6, 3)).astype(np.float32), rng.uniform(0.0, 1.0, (6, 6, 1)).astype(np.float32)
+    steps = sum(np.abs(np.diff(t, axis=0)).sum() + np.abs(np.diff(t, axis=1)).sum() for t in (a, b))
+    value = inv.total_variation(mi, [mi.TensorXf(a), mi.TensorXf(b)])
+    assert float(value.array[0]) == pytest.approx(steps / (5 * 6 + 6 * 5), rel=1e-5)
+
+
+@pytest.mark.parametrize(
+    "settings, message",
+    [
+        ({"epochs": 0}, r"epochs must be an integer >= 1, got 0"),
+        ({"spp": 2.5}, r"spp must be an integer >= 1, got 2.5"),
+        ({"lr": 0.0}, r"lr must be a finite number > 0, got 0.0"),
+        ({"loss": "l1"}, r"loss must be one of \('l1log', 'l2'\), got 'l1'"),
+        ({"tv_weight": -1e-3}, r"tv_weight must be a finite number >= 0"),
+        ({"max_depth": 0}, r"max_depth must be -1 \(unlimited\) or >= 1, got 0"),
+        ({"seed": -1}, r"seed must be an integer >= 0, got -1"),
+    ],
+)
+def test_bad_settings_give_one_line_naming_the_field(settings, message):
+    with pytest.raises(ValueError, match=message):
+        inv.InverseSettings(**settings)
+
+
+def test_bad_start_textures_are_refused():
+    good = inv.constant_textures(4)
+    with pytest.raises(ValueError, match=r"roughness is \(4, 5\), expected \(4, 4\)"):
+        inv.check_textures({**good, "roughness": np.zeros((4, 5))})
+    with pytest.raises(ValueError, match=r"metallic values are not finite numbers in \[0, 1\]"):
+        inv.check_textures({**good, "metallic": np.full((4, 4), 1.5)})
+    with pytest.raises(ValueError, match=r"missing \['base_color'\]"):
+        inv.check_textures({"roughness": good["roughness"], "metallic": good["metallic"]})
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda c: c["mitsuba"].update(loss="l1"), r"config key mitsuba\.loss: 'l1' is not one of \['l1log', 'l2'\]"),
+        (lambda c: c["mitsuba"]["finetune"].update(epochs=0), r"config key mitsuba\.finetune\.epochs: 0 is less than"),
+        (lambda c: c["mitsuba"].update(spp=8.5), r"config key mitsuba\.spp: 8\.5 is not of type 'integer'"),
+        (lambda c: c["mitsuba"].pop("max_depth"), r"config key mitsuba: 'max_depth' is a required property"),
+        (lambda c: c.update(methods=["freq", "mitsuba2"]), r"config key methods\.1: 'mitsuba2' is not one of"),
+    ],
+)
+def test_config_mistakes_in_the_mitsuba_section_name_the_key(repo, edit, message):
+    config = yaml.safe_load((repo / "config" / "config.yaml").read_text())
+    assert {"mitsuba", "freq+mitsuba"} <= set(config["methods"])
+    edit(config)
+    with pytest.raises(ConfigError, match=message) as info:
+        check_config(copy.deepcopy(config), repo / "config" / "schemas" / "config.schema.yaml")
+    assert "\n" not in str(info.value)
+
+
+def test_capture_scene_takes_only_path_or_prb(mi, capture):
+    bsdf = principled_bsdf(mi, **inv.constant_textures(TEXELS))
+    with pytest.raises(ValueError, match=r"integrator must be 'path' or 'prb', got 'ptracer'"):
+        capture_scene(mi, capture["mesh"], bsdf, capture["env"], width=SIZE, height=SIZE, fov_x_deg=FOV, spp=1,
+                      max_depth=2, integrator="ptracer")
