@@ -1,0 +1,46 @@
+"""Rule relight: one method's textures rendered from the held-out test views under another environment."""
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from freqbrdf.cameras import cameras_from_json, mitsuba_to_world
+from freqbrdf.io import atomic_directory, read_exr, read_json, read_svbrdf, write_exr
+from freqbrdf.logs import run_script
+from freqbrdf.mitsuba_setup import setup_mitsuba
+from freqbrdf.plots import contact_sheet
+from freqbrdf.render import capture_scene, principled_bsdf, render_views
+
+
+def main(smk, log):
+    mi = setup_mitsuba(threads=smk.threads)
+    render = smk.params.render
+    test = Path(smk.input.test)
+    cameras = cameras_from_json(read_json(test / "cameras.json"), test / "cameras.json")
+    if (cameras.width, cameras.height) != (render["resolution"], render["resolution"]):
+        raise ValueError(f"{test}/cameras.json: views are {cameras.width}x{cameras.height}, "
+                         f"render.resolution is {render['resolution']}")
+    estimate = Path(smk.input.estimate)
+    textures = read_svbrdf(*(estimate / f"{name}.exr" for name in ("base_color", "roughness", "metallic")))
+    # Exactly the reference renders' scene (render_capture): same mesh, environment,
+    # integrator, film, sample count and seed, so that a perfect estimate
+    # reproduces the reference image and the score carries no Monte Carlo noise floor.
+    scene = capture_scene(
+        mi, smk.input.mesh, principled_bsdf(mi, **textures), read_exr(smk.input.envmap),
+        width=cameras.width, height=cameras.height, fov_x_deg=render["fov_deg"],
+        spp=render["spp"], max_depth=render["max_depth"],
+    )
+    to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
+    start = time.perf_counter()
+    with atomic_directory(smk.output[0]) as tmp:
+        previews = []
+        for name, image in zip(cameras.names, render_views(mi, scene, to_world, seed=smk.params.seed)):
+            write_exr(tmp / "images" / f"{name}.exr", image)
+            if len(previews) < 8:  # the reference capture's preview.png shows the same first 8 views
+                previews.append(image)
+            log.info("view %s relit, %d views in total (%.1f s elapsed)", name, len(cameras), time.perf_counter() - start)
+        contact_sheet(tmp / "preview.png", previews)
+
+
+run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
