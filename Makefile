@@ -1,12 +1,13 @@
 # Two entry points for a fresh machine (see README):
 #   make run    create .venv if needed, then run the pipeline on config/config.yaml
-#   make test   create .venv if needed, then run the test suite
+#   make test   create .venv and Chromium (report-deps) if needed, then run the test suite
+#   make report build results/report.html and screenshots of it
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= 2
 
-.PHONY: run test bench clean-results
+.PHONY: run test bench clean-results report report-deps
 
 $(BIN)/.installed: workflow/pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -17,7 +18,7 @@ $(BIN)/.installed: workflow/pyproject.toml
 run: $(BIN)/.installed
 	$(BIN)/snakemake --cores $(CORES)
 
-test: $(BIN)/.installed
+test: $(BIN)/.installed report-deps
 	$(BIN)/python -m pytest -q tests
 
 bench: $(BIN)/.installed
@@ -25,3 +26,21 @@ bench: $(BIN)/.installed
 
 clean-results:
 	rm -rf results .snakemake
+
+# Headless Chromium for the report screenshots (bench/report_screenshot.py,
+# tests/test_report.py): Debian's chromium package, installed with apt-get as
+# root or through passwordless sudo. A machine where neither works only warns:
+# the screenshot test then skips, except under CI (CI=true), where it fails.
+CHROMIUM := $(shell command -v chromium || command -v chromium-browser || command -v google-chrome)
+APT_CHROMIUM := apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium fonts-dejavu-core >/dev/null
+report-deps:
+ifeq ($(CHROMIUM),)
+	@if [ "$$(id -u)" = 0 ]; then $(APT_CHROMIUM) || echo "report-deps: apt-get install chromium failed" >&2; \
+	elif sudo -n true 2>/dev/null; then sudo -n sh -c '$(APT_CHROMIUM)' || echo "report-deps: sudo apt-get install chromium failed" >&2; \
+	else echo "report-deps: cannot install chromium (not root, no passwordless sudo); report screenshots are skipped" >&2; fi
+endif
+
+report: $(BIN)/.installed report-deps
+	$(BIN)/snakemake --cores $(CORES)
+	$(BIN)/snakemake --report results/report.html
+	$(BIN)/python bench/report_screenshot.py results/report.html --out results/report_screenshots

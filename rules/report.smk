@@ -1,0 +1,94 @@
+# Tables and figures of the Snakemake report (snakemake --report results/report.html).
+# These rules read finished outputs only and take no config that upstream rules
+# use, so changing a metric setting reruns metrics, then these, and nothing else.
+
+# Stems of the table files (freqbrdf.tables.summaries keys): the paper's Tables 1, 2, 4, 5 and the claims.
+TABLES = ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "claims"]
+
+
+def report_outputs():
+    """Every file the report rules write (targets of rule all)."""
+    outputs = [f"results/tables/{t}.{ext}" for t in TABLES for ext in ("md", "tex")]
+    outputs += ["results/tables/tables.md", "results/tables/tables.html", "results/tables/claims.html"]
+    outputs += [f"results/figures/{o}/{e}/{POSES}/maps.png" for o, e in CAPTURES]
+    outputs += [f"results/figures/{o}/{e}/{POSES}/relight.png" for o, e in SYNTHETIC_CAPTURES]
+    return outputs
+
+
+def capture_relights(wildcards):
+    """(method, relight_env) of every relit image set of one capture, relighting environment-major."""
+    pairs = [(m, r) for o, e, p, m, r in RELIGHTS
+             if (o, e, p) == (wildcards.object, wildcards.env, wildcards.poses)]
+    return sorted(pairs, key=lambda pair: (ENVS.index(pair[1]), METHODS.index(pair[0])))
+
+
+rule tables:
+    """The paper's Tables 1, 2, 4 and 5 with our numbers beside the paper's, and the
+    claims table, as Markdown, LaTeX and HTML (the HTML pages are in the report)."""
+    input:
+        metrics="results/tables/metrics.csv",
+        code=library("tables"),
+    output:
+        **{f"{t}_{ext}": f"results/tables/{t}.{ext}" for t in TABLES for ext in ("md", "tex")},
+        all_md="results/tables/tables.md",
+        html=report("results/tables/tables.html", category="Tables", caption="../report/tables.rst",
+                    labels={"table": "Tables 1, 2, 4, 5"}),
+        claims_html=report("results/tables/claims.html", category="Tables", caption="../report/claims.rst",
+                           labels={"table": "claims"}),
+    params:
+        poses=POSES,
+        # Which of the paper's environments each of ours stands beside (Table 2).
+        env_kinds={env: config["envs"][env]["kind"] for env in ENVS},
+    log:
+        "results/logs/tables.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/report_tables.py"
+
+
+rule capture_figure:
+    """Ground truth against every method's base colour, roughness and metallic maps,
+    with the entropy map (Turbo) and each method's per-texel error."""
+    input:
+        estimates=lambda w: [f"results/estimates/{w.object}/{w.env}/{w.poses}/{m}" for m in METHODS],
+        # Real captures have no ground-truth textures: their figure shows no error maps.
+        truth=lambda w: [] if w.object in REAL_CAPTURES else
+            [f"results/objects/{w.object}/{n}.exr" for n in ("base_color", "roughness", "metallic")],
+        observations="results/observations/{object}/{env}/{poses}",
+        entropy="results/entropy/{object}/{env}/{poses}",
+        code=library("figures", "metrics", "spectral"),
+    output:
+        report("results/figures/{object}/{env}/{poses}/maps.png", category="Captures",
+               subcategory="{object} / {env}", caption="../report/capture_maps.rst",
+               labels={"capture": "{object} / {env}", "figure": "SVBRDF maps, entropy, error"}),
+    params:
+        methods=METHODS,
+    log:
+        "results/logs/capture_figure/{object}_{env}_{poses}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/report_figures.py"
+
+
+rule relight_figure:
+    """The first test view relit with every method's textures beside the ground-truth
+    render, under each held-out environment, with PSNR-H from metrics.csv."""
+    input:
+        relit=lambda w: [f"results/relight/{w.object}/{w.env}/{w.poses}/{m}/{r}" for m, r in capture_relights(w)],
+        references=lambda w: sorted({f"results/captures/{w.object}/{r}/test" for _, r in capture_relights(w)}),
+        metrics="results/tables/metrics.csv",
+        code=library("figures", "metrics"),
+    output:
+        report("results/figures/{object}/{env}/{poses}/relight.png", category="Captures",
+               subcategory="{object} / {env}", caption="../report/capture_relight.rst",
+               labels={"capture": "{object} / {env}", "figure": "relighting"}),
+    params:
+        relights=capture_relights,
+    log:
+        "results/logs/relight_figure/{object}_{env}_{poses}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/report_figures.py"

@@ -1,0 +1,213 @@
+"""Per-capture figures of the report: recovered maps against ground truth with
+the entropy and error maps, and relit renders beside the ground-truth renders.
+
+Kept apart from :mod:`freqbrdf.plots` on purpose: rules declare the library
+modules they run as inputs, and only the report rules use these figures, so
+editing them reruns nothing upstream.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+
+import numpy as np
+
+from .io import atomic_path, to_srgb, tonemap
+from .metrics import parameter_error_map
+
+GREY = "0.85"  # outside the UV atlas (or not scored)
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: str | os.PathLike) -> None:
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=100, bbox_inches="tight", format="png")
+    _pyplot().close(fig)
+
+
+def atlas_masks(resolution: int, texel: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Texels inside the UV atlas, and those that some view observes, as (R, R) images.
+
+    Parameters
+    ----------
+    resolution : int
+        Atlas size R.
+    texel : ndarray, shape (T,), int
+        Flat indices ``i * R + j`` of the atlas texels (observations' ``texels.npz``).
+    observed : ndarray, shape (T,), bool
+        Whether any view observes each texel.
+
+    Returns
+    -------
+    inside, seen : ndarray, shape (R, R), bool
+    """
+    inside = np.zeros(resolution * resolution, bool)
+    seen = np.zeros(resolution * resolution, bool)
+    inside[texel] = True
+    seen[texel[np.asarray(observed, bool)]] = True
+    return inside.reshape(resolution, resolution), seen.reshape(resolution, resolution)
+
+
+def error_scale(errors: Mapping[str, np.ndarray], seen: np.ndarray, quantile: float = 0.99) -> float:
+    """One upper limit of the colour scale for every method's error map, so they compare.
+
+    The ``quantile`` of the squared errors over observed texels of all methods
+    (a few outliers would otherwise wash every map out); at least 1e-6.
+    """
+    values = np.concatenate([e[seen] for e in errors.values()]) if errors and seen.any() else np.zeros(1)
+    return max(float(np.quantile(values, quantile)), 1e-6)
+
+
+def capture_maps_figure(
+    path: str | os.PathLike,
+    truth: Mapping[str, np.ndarray] | None,
+    estimates: Mapping[str, Mapping[str, np.ndarray]],
+    entropy: np.ndarray,
+    inside: np.ndarray,
+    seen: np.ndarray,
+    title: str,
+) -> dict[str, float]:
+    """Ground truth against each method's maps, with our entropy and each method's error.
+
+    One row per SVBRDF (ground truth first), columns base colour (sRGB),
+    roughness, metallic (grey, 0 black to 1 white) and a fourth map: our entropy
+    (Turbo, 0 certain to 1 uncertain) in the ground-truth row, the per-texel
+    squared parameter error (mean of the three groups, observed texels only,
+    one shared scale) in every method's row. Grey: outside the atlas (or, in
+    error maps, never observed).
+
+    Parameters
+    ----------
+    path : path-like
+        PNG destination.
+    truth : mapping or None
+        Ground-truth ``base_color`` (R, R, 3), ``roughness``, ``metallic`` (R, R);
+        None for a real capture (no ground truth: no error maps).
+    estimates : mapping of method to SVBRDF mapping
+        As ``truth``, in display order.
+    entropy : ndarray, shape (R, R)
+        Normalised entropy in [0, 1].
+    inside, seen : ndarray, shape (R, R), bool
+        From :func:`atlas_masks`.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    dict
+        Method -> parameter MSE over observed texels (empty without ground truth),
+        the numbers printed in the row labels.
+    """
+    plt = _pyplot()
+    errors = {m: parameter_error_map(truth, est) for m, est in estimates.items()} if truth is not None else {}
+    vmax = error_scale(errors, seen)
+    rows = [("ground truth", truth)] + list(estimates.items())
+    fig, axes = plt.subplots(len(rows), 4, figsize=(4 * 2.1, len(rows) * 2.0 + 0.4), squeeze=False,
+                             layout="constrained")
+    grey_map = plt.get_cmap("gray").with_extremes(bad=GREY)
+    turbo = plt.get_cmap("turbo").with_extremes(bad=GREY)
+    magma = plt.get_cmap("magma").with_extremes(bad=GREY)
+    mse = {}
+    shown_entropy = shown_error = None
+    for r, (label, svbrdf) in enumerate(rows):
+        ax_base, ax_rough, ax_metal, ax_extra = axes[r]
+        if svbrdf is None:
+            for ax in (ax_base, ax_rough, ax_metal):
+                ax.text(0.5, 0.5, "no ground truth\n(real capture)", ha="center", va="center", fontsize=8)
+        else:
+            base = to_srgb(svbrdf["base_color"])
+            base[~inside] = float(GREY)
+            ax_base.imshow(base, interpolation="nearest")
+            for ax, name in ((ax_rough, "roughness"), (ax_metal, "metallic")):
+                ax.imshow(np.where(inside, svbrdf[name], np.nan), cmap=grey_map, vmin=0.0, vmax=1.0,
+                          interpolation="nearest")
+        if r == 0:
+            shown_entropy = ax_extra.imshow(np.where(inside, entropy, np.nan), cmap=turbo, vmin=0.0, vmax=1.0,
+                                            interpolation="nearest")
+        elif label in errors:
+            mse[label] = float(errors[label][seen].mean()) if seen.any() else float("nan")
+            shown_error = ax_extra.imshow(np.where(seen, errors[label], np.nan), cmap=magma, vmin=0.0, vmax=vmax,
+                                          interpolation="nearest")
+            label = f"{label}\nMSE {mse[label]:.3f}"
+        else:
+            ax_extra.text(0.5, 0.5, "no ground truth", ha="center", va="center", fontsize=8)
+        ax_base.set_ylabel(label, fontsize=9)
+    for ax in axes.ravel():
+        ax.set_xticks([])
+        ax.set_yticks([])
+    for ax, name in zip(axes[0], ("base colour", "roughness", "metallic", "entropy (ours)")):
+        ax.set_title(name, fontsize=9)
+    if len(rows) > 1 and errors:
+        axes[1, 3].set_title("squared error", fontsize=9)
+    if shown_entropy is not None:
+        fig.colorbar(shown_entropy, ax=axes[0, 3], shrink=0.9, label="entropy")
+    if shown_error is not None:
+        fig.colorbar(shown_error, ax=axes[1:, 3].tolist(), shrink=0.5, label="squared error")
+    fig.suptitle(title, fontsize=10)
+    _save(fig, path)
+    return mse
+
+
+def relight_figure(
+    path: str | os.PathLike,
+    references: Mapping[str, np.ndarray],
+    relit: Mapping[str, Mapping[str, np.ndarray]],
+    scores: Mapping[tuple[str, str], float],
+    title: str,
+) -> None:
+    """Relit renders beside the ground-truth render, one row per relighting environment.
+
+    Parameters
+    ----------
+    path : path-like
+        PNG destination.
+    references : mapping of relight_env to ndarray, shape (H, W, 3)
+        Ground-truth render of one test view (linear radiance).
+    relit : mapping of relight_env to mapping of method to ndarray, shape (H, W, 3)
+        The same view rendered with each method's textures, in display order.
+    scores : mapping of (relight_env, method) to float
+        PSNR-H to print under each render (missing pairs print nothing).
+    title : str
+        Figure title.
+    """
+    plt = _pyplot()
+    methods = list(dict.fromkeys(m for per_env in relit.values() for m in per_env))
+    envs = list(references)
+    if not envs:
+        fig, ax = plt.subplots(figsize=(5, 1.2))
+        ax.text(0.5, 0.5, "no relighting renders for this capture", ha="center", va="center")
+        ax.set_axis_off()
+        fig.suptitle(title, fontsize=10)
+        _save(fig, path)
+        return
+    cols = 1 + len(methods)
+    fig, axes = plt.subplots(len(envs), cols, figsize=(cols * 1.9, len(envs) * 2.0 + 0.4), squeeze=False,
+                             layout="constrained")
+    for r, env in enumerate(envs):
+        axes[r, 0].imshow(tonemap(references[env]))
+        axes[r, 0].set_ylabel(f"relit under\n{env}", fontsize=9)
+        for c, method in enumerate(methods, start=1):
+            image = relit.get(env, {}).get(method)
+            if image is None:
+                axes[r, c].text(0.5, 0.5, "not run", ha="center", va="center", fontsize=8)
+                continue
+            axes[r, c].imshow(tonemap(image))
+            score = scores.get((env, method))
+            if score is not None and np.isfinite(score):
+                axes[r, c].set_xlabel(f"PSNR-H {score:.2f}", fontsize=8)
+    for ax in axes.ravel():
+        ax.set_xticks([])
+        ax.set_yticks([])
+    for ax, name in zip(axes[0], ("ground truth", *methods)):
+        ax.set_title(name, fontsize=9)
+    fig.suptitle(title, fontsize=10)
+    _save(fig, path)

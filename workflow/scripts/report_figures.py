@@ -1,0 +1,58 @@
+"""Rules capture_figure and relight_figure: per-capture figures of the Snakemake report."""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from freqbrdf.figures import atlas_masks, capture_maps_figure, relight_figure
+from freqbrdf.io import read_exr, read_svbrdf
+from freqbrdf.logs import run_script
+from freqbrdf.spectral import observed_texels
+
+PARAMETERS = ("base_color", "roughness", "metallic")
+
+
+def maps(smk, log):
+    obs = Path(smk.input.observations)
+    texel = np.load(obs / "texels.npz")["texel"]
+    observed = observed_texels(np.load(obs / "weight.npy", mmap_mode="r"))
+    entropy = read_exr(Path(smk.input.entropy) / "entropy.exr")
+    if entropy.ndim == 3:
+        entropy = entropy[..., 0]
+    inside, seen = atlas_masks(entropy.shape[0], texel, observed)
+    truth = read_svbrdf(*smk.input.truth) if smk.input.truth else None
+    estimates = {method: read_svbrdf(*(Path(d) / f"{n}.exr" for n in PARAMETERS))
+                 for method, d in zip(smk.params.methods, smk.input.estimates)}
+    w = smk.wildcards
+    mse = capture_maps_figure(smk.output[0], truth, estimates, entropy, inside, seen,
+                              f"{w.object} captured under {w.env} ({w.poses} poses): "
+                              f"{int(seen.sum())} of {int(inside.sum())} atlas texels observed")
+    log.info("parameter MSE over observed texels: %s", ", ".join(f"{m} {v:.4f}" for m, v in mse.items()))
+
+
+def first_view(directory: Path) -> np.ndarray:
+    """The first test view (by name) of a capture or relit image set."""
+    views = sorted((directory / "images").glob("*.exr"))
+    if not views:
+        raise FileNotFoundError(f"{directory}/images: no EXR views")
+    return read_exr(views[0])
+
+
+def relight(smk, log):
+    w = smk.wildcards
+    metrics = pd.read_csv(smk.input.metrics, keep_default_na=False, na_values=[""])
+    psnr = metrics[(metrics.object == w.object) & (metrics.env == w.env) & (metrics.poses == w.poses)
+                   & (metrics.metric == "psnr_h")]
+    scores = {(r, m): float(v) for r, m, v in zip(psnr.relight_env, psnr.method, psnr.value)}
+    references, relit = {}, {}
+    for (method, relight_env), directory in zip(smk.params.relights, smk.input.relit):
+        if relight_env not in references:
+            references[relight_env] = first_view(Path(f"results/captures/{w.object}/{relight_env}/test"))
+        relit.setdefault(relight_env, {})[method] = first_view(Path(directory))
+    relight_figure(smk.output[0], references, relit, scores,
+                   f"{w.object} captured under {w.env}: first test view relit under held-out environments")
+    log.info("relit views of %d method(s) under %s", len({m for m, _ in smk.params.relights}), ", ".join(references))
+
+
+run_script({"capture_figure": maps, "relight_figure": relight}[snakemake.rule], snakemake)  # noqa: F821

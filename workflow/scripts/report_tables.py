@@ -1,0 +1,39 @@
+"""Rule tables: the paper's Tables 1, 2, 4, 5 and the claims table from the tidy metrics,
+as Markdown and LaTeX files, and as HTML pages for the Snakemake report."""
+
+import pandas as pd
+
+from freqbrdf.io import atomic_path
+from freqbrdf.logs import run_script
+from freqbrdf.tables import check_tidy, html_page, summaries, to_html, to_latex, to_markdown
+
+
+def write_text(path: str, text: str) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
+def main(smk, log):
+    metrics = check_tidy(pd.read_csv(smk.input.metrics, keep_default_na=False, na_values=[""]))
+    # One pose source per table: the run's (metrics.csv may hold others from earlier runs' configs).
+    metrics = metrics[metrics.poses == smk.params.poses]
+    if metrics.empty:
+        raise ValueError(f"{smk.input.metrics}: no rows with poses == {smk.params.poses!r}")
+    tables = summaries(metrics, smk.params.env_kinds)
+    for summary in tables:
+        write_text(smk.output[f"{summary.key}_md"], to_markdown(summary.table, summary.title, summary.caption))
+        write_text(smk.output[f"{summary.key}_tex"],
+                   to_latex(summary.table, f"{summary.title}. {summary.caption}", f"tab:{summary.key}"))
+        log.info("%s:\n%s", summary.title, to_markdown(summary.table))
+    write_text(smk.output.all_md, "# FreqBRDF: summary tables\n\n"
+               + "\n".join(to_markdown(s.table, s.title, s.caption) for s in tables))
+    body = "\n".join(to_html(s.table, s.title, s.caption) for s in tables if s.key != "claims")
+    write_text(smk.output.html, html_page("FreqBRDF: the paper's tables, reproduced", body))
+    claims = next(s for s in tables if s.key == "claims")
+    write_text(smk.output.claims_html, html_page("FreqBRDF: the paper's claims, checked",
+                                                 to_html(claims.table, None, claims.caption, verdicts="holds")))
+    verdicts = claims.table.holds.value_counts().to_dict()
+    log.info("claims: %s", ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items())))
+
+
+run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
