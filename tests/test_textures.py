@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from freqbrdf.textures import svbrdf_textures
+from freqbrdf.textures import grain, svbrdf_textures
 
 
 @pytest.fixture(scope="module")
@@ -76,3 +76,31 @@ def test_scatter_to_atlas_keeps_known_values_and_fills_from_the_nearest():
     assert not (atlas == 9.0).any()
     with pytest.raises(ValueError, match="no texel has a known value"):
         scatter_to_atlas(8, texel, values, known=np.zeros(3, bool))
+
+
+def test_grain_adds_fine_detail_to_the_base_colour_only():
+    plain = svbrdf_textures(128, seed=3)
+    grained = svbrdf_textures(128, seed=3, grain_amplitude=0.8, grain_texels=2.0)
+    for name in ("roughness", "metallic"):
+        np.testing.assert_array_equal(plain[name], grained[name])
+    ratio = grained["base_color"][..., 1] / np.maximum(plain["base_color"][..., 1], 1e-3)
+    unclipped = (plain["base_color"][..., 1] > 0.05) & (grained["base_color"][..., 1] < 1.0)
+    # The factor stays within [1 - a, 1 + a] and is about 2/3 a in spread.
+    assert ratio[unclipped].min() >= 0.2 - 1e-5 and ratio[unclipped].max() <= 1.8 + 1e-5
+    assert 0.35 < ratio[unclipped].std() < 0.6
+    # Detail a few texels across: neighbouring texels differ far more than with no grain.
+    def jitter(t):
+        return np.abs(np.diff(t["base_color"], axis=1)).mean()
+    assert jitter(grained) > 4 * jitter(plain)
+
+
+def test_grain_is_periodic_and_validated():
+    rng = np.random.default_rng(0)
+    g = grain(64, rng, 2.0)
+    assert g.shape == (64, 64) and g.min() >= -1 and g.max() <= 1
+    # Periodic: the step across the wrap-around seam is no larger than a step inside.
+    assert np.abs(g[:, 0] - g[:, -1]).mean() < 2 * np.abs(np.diff(g, axis=1)).mean()
+    with pytest.raises(ValueError, match="grain size must be > 0 texels, got 0"):
+        grain(64, rng, 0.0)
+    with pytest.raises(ValueError, match="grain amplitude must be in \\[0, 1\\), got 1.2"):
+        svbrdf_textures(32, seed=0, grain_amplitude=1.2)

@@ -4,8 +4,11 @@ The atlas is partitioned into soft Voronoi cells; each cell is one material
 (diffuse or metallic, smooth or rough, with its own base colour). The width of
 the transitions between cells varies across the atlas, so every texture has
 both sharp edges and smooth blends, and low-frequency periodic noise varies
-colour and roughness inside a cell. All fields are periodic in u and v, so
-seams of the sphere and torus atlases are invisible.
+colour and roughness inside a cell. A fine grain (band-limited noise a few
+texels across) modulates the base colour, as paint and print do on real
+objects; without it structure from motion finds too few distinctive features
+to register the views (README: "Poses"). All fields are periodic in u and v,
+so seams of the sphere and torus atlases are invisible.
 
 Texel (i, j) of an (H, W) texture sits at uv = ((j + 0.5)/W, (i + 0.5)/H),
 the layout Mitsuba's ``bitmap`` texture reads.
@@ -92,7 +95,34 @@ def _base_colour(rng: np.random.Generator, metallic: float) -> np.ndarray:
     return value - value * saturation * np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0)
 
 
-def svbrdf_textures(resolution: int, seed: int, cells: int = 10) -> dict[str, np.ndarray]:
+def grain(resolution: int, rng: np.random.Generator, texels: float) -> np.ndarray:
+    """Fine periodic noise: white noise blurred by a Gaussian, scaled to [-1, 1].
+
+    Parameters
+    ----------
+    resolution : int
+        Atlas size R.
+    rng : numpy.random.Generator
+    texels : float
+        Standard deviation of the blur, in texels (> 0).
+
+    Returns
+    -------
+    ndarray, shape (R, R)
+        Zero-mean noise, standard deviation 2/3 before clipping to [-1, 1]: a
+        high-contrast, blotchy pattern whose corners SIFT finds in every view.
+    """
+    from scipy.ndimage import gaussian_filter
+
+    if not texels > 0:
+        raise ValueError(f"grain size must be > 0 texels, got {texels}")
+    noise = gaussian_filter(rng.standard_normal((resolution, resolution)), texels, mode="wrap")
+    return np.clip(noise / (1.5 * noise.std()), -1.0, 1.0)
+
+
+def svbrdf_textures(
+    resolution: int, seed: int, cells: int = 10, grain_amplitude: float = 0.0, grain_texels: float = 1.5
+) -> dict[str, np.ndarray]:
     """Ground-truth base colour, roughness and metallic textures.
 
     Parameters
@@ -103,6 +133,11 @@ def svbrdf_textures(resolution: int, seed: int, cells: int = 10) -> dict[str, np
         Seed of every random choice; equal seeds give identical textures.
     cells : int
         Number of material regions (>= 4, one per material class at least).
+    grain_amplitude : float
+        Relative modulation of the base colour by :func:`grain`, in [0, 1):
+        each texel's colour is multiplied by a factor in [1 - a, 1 + a].
+    grain_texels : float
+        Size of the grain (blur standard deviation, texels).
 
     Returns
     -------
@@ -114,6 +149,8 @@ def svbrdf_textures(resolution: int, seed: int, cells: int = 10) -> dict[str, np
         raise ValueError(f"texture resolution must be >= 8, got {resolution}")
     if cells < len(MATERIAL_CLASSES):
         raise ValueError(f"cells must be >= {len(MATERIAL_CLASSES)}, got {cells}")
+    if not 0.0 <= grain_amplitude < 1.0:
+        raise ValueError(f"grain amplitude must be in [0, 1), got {grain_amplitude}")
     rng = np.random.default_rng(seed)
     u, v = uv_grid(resolution)
 
@@ -138,6 +175,9 @@ def svbrdf_textures(resolution: int, seed: int, cells: int = 10) -> dict[str, np
     metal_tex = np.einsum("s,s...->...", metallic, weights)
     base_tex = np.einsum("sc,s...->...c", colour, weights)
     base_tex *= 1.0 + 0.15 * periodic_noise(u, v, rng)[..., None]
+    if grain_amplitude > 0:
+        # Drawn last, so the textures without grain are unchanged by it.
+        base_tex *= 1.0 + grain_amplitude * grain(resolution, rng, grain_texels)[..., None]
     return {
         "base_color": np.clip(base_tex, 0.0, 1.0).astype(np.float32),
         "roughness": np.clip(rough_tex, 0.0, 1.0).astype(np.float32),

@@ -13,7 +13,10 @@ def main(smk, log):
     log.info("mesh: %d vertices, %d triangles", len(mesh.vertices), len(mesh.faces))
 
     settings = smk.params.textures
-    textures = svbrdf_textures(settings["resolution"], seed=smk.params.seed, cells=settings["cells"])
+    textures = svbrdf_textures(
+        settings["resolution"], seed=smk.params.seed, cells=settings["cells"],
+        grain_amplitude=settings["grain"], grain_texels=settings["grain_texels"],
+    )
     for name, texture in textures.items():
         write_exr(smk.output[name], texture)
         texture_preview(smk.output[f"{name}_png"], texture, srgb=(name == "base_color"))

@@ -1,0 +1,42 @@
+rule colmap_poses:
+    """Camera poses of a training capture by pycolmap SfM (SIFT, exhaustive matching,
+    incremental mapping on tone-mapped views), similarity-aligned to the capture's
+    reference cameras, with a per-view pose-error table. Fails, naming the option
+    to change, if too few views register or the poses are off."""
+    input:
+        capture=lambda wildcards: capture_dir(wildcards, "train"),
+        code=library("sfm", "cameras"),
+    output:
+        directory("results/poses/{object}/{env}/colmap"),
+    params:
+        colmap=config["poses"]["colmap"],
+        gates={key: config["poses"][key] for key in ("min_registered_fraction", "max_median_rotation_deg", "max_median_centre_error")},
+        seed=lambda wildcards: derived_seed(config["seed"], "sfm", wildcards.object, wildcards.env),
+    threads: 2
+    resources:
+        mem_mb=4000,
+    log:
+        "results/logs/colmap_poses/{object}_{env}.log",
+    benchmark:
+        "results/benchmarks/colmap_poses/{object}_{env}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/colmap_poses.py"
+
+
+rule pose_errors:
+    """Registered views and median pose errors of SfM on every synthetic capture, one row each."""
+    input:
+        poses=[f"results/poses/{o}/{e}/colmap" for o, e in SYNTHETIC_CAPTURES],
+        code=library(),
+    output:
+        "results/tables/pose_errors.tsv",
+    params:
+        captures=SYNTHETIC_CAPTURES,
+    log:
+        "results/logs/pose_errors.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/pose_errors.py"
