@@ -29,10 +29,14 @@ include: "rules/objects.smk"
 include: "rules/envs.smk"
 include: "rules/captures.smk"
 include: "rules/exchange.smk"
+include: "rules/poses.smk"
 include: "rules/observations.smk"
 include: "rules/frequency.smk"
 include: "rules/estimate.smk"
+include: "rules/finetune.smk"
+include: "rules/relight.smk"
 include: "rules/evaluate.smk"
+include: "rules/report.smk"
 
 
 rule all:

@@ -12,18 +12,35 @@ CAPTURE_ENVS = list(config["capture_envs"])
 SPLITS = ["train", "test"]
 POSES = config["poses"]["source"]
 METHODS = list(config["methods"])
+# Methods estimated by differentiable rendering (rules/finetune.smk) rather
+# than by the frequency-domain optimiser (rules/estimate.smk).
+MITSUBA_METHODS = r"mitsuba|freq\+mitsuba"
 # Every (object, env) pair that has a training capture; synthetic ones have ground truth.
 SYNTHETIC_CAPTURES = [(o, e) for o in SYNTHETIC_OBJECTS for e in CAPTURE_ENVS]
 CAPTURES = SYNTHETIC_CAPTURES + [
     (name, capture["env"]) for name, capture in REAL_CAPTURES.items()
 ]
 
+
+def relight_envs(env):
+    """Environments a synthetic capture's estimates are relit under (config evaluate.relight_envs)."""
+    choice = config["evaluate"]["relight_envs"]
+    if choice == "held_out":
+        return [e for e in ENVS if e != env]
+    return ENVS if choice == "all" else list(choice)
+
+
+# Every relit image set (object, env, poses, method, relight_env): synthetic captures
+# only, since a real capture has no test views under other environments.
+RELIGHTS = [(o, e, POSES, m, r) for o, e in SYNTHETIC_CAPTURES for m in METHODS for r in relight_envs(e)]
+
 wildcard_constraints:
     object="|".join(OBJECTS),
     env="|".join(ENVS + [capture["env"] for capture in REAL_CAPTURES.values()]),
     split="|".join(SPLITS),
     poses="gt|colmap",
-    method="spectrum|freq|freq_noshadow|freq_nomask|rh2001",
+    method="spectrum|freq|freq_noshadow|freq_nomask|rh2001|" + MITSUBA_METHODS,
+    relight_env="|".join(ENVS),
 
 
 LIBRARY = Path(workflow.basedir) / "workflow" / "freqbrdf"
@@ -84,8 +101,12 @@ def final_outputs():
     outputs.append("results/envs/spectra.png")
     outputs += expand("results/captures/{object}/{env}/train", object=SYNTHETIC_OBJECTS, env=CAPTURE_ENVS)
     outputs += expand("results/captures/{object}/{env}/test", object=SYNTHETIC_OBJECTS, env=ENVS)
+    if config["poses"]["evaluate_colmap"]:
+        outputs.append("results/tables/pose_errors.tsv")
     outputs += [f"results/observations/{o}/{e}/{POSES}" for o, e in CAPTURES]
     outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for o, e in CAPTURES for m in METHODS]
     outputs += [f"results/entropy/{o}/{e}/{POSES}" for o, e in CAPTURES]
-    outputs.append("results/tables/parameter_mse.tsv")
+    outputs += [f"results/relight/{o}/{e}/{p}/{m}/{r}" for o, e, p, m, r in RELIGHTS]
+    outputs.append("results/tables/metrics.csv")
+    outputs += report_outputs()  # rules/report.smk: tables, claims, per-capture figures
     return outputs

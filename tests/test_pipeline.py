@@ -28,6 +28,14 @@ def planned_jobs(output: str) -> dict[str, int]:
     return {m.group(1): int(m.group(2)) for m in re.finditer(r"^(\w+)\s+(\d+)$", table, re.M)}
 
 
+def tiny_methods(repo) -> list[str]:
+    """The methods the tiny run estimates (tiny.yaml, else the default config)."""
+    import yaml
+
+    configs = [yaml.safe_load((repo / "config" / name).read_text()) for name in ("config.yaml", "tiny.yaml")]
+    return next(c["methods"] for c in reversed(configs) if "methods" in c)
+
+
 @pytest.fixture(scope="module")
 def run(repo, tmp_path_factory):
     workdir = tmp_path_factory.mktemp("pipeline")
@@ -78,22 +86,24 @@ def test_changing_one_env_reruns_only_what_depends_on_it(repo, run, tmp_path):
     changed.write_text("envs:\n  overcast: {kind: overcast, ground_albedo: 0.4}\n")
     plan = snakemake(repo, run, "-n", extra_config=[changed])
     jobs = planned_jobs(plan.stdout)
-    assert jobs == {"build_env": 1, "env_spectrum": 1, "env_spectra": 1, "render_capture": 1, "all": 1}
+    # every method's relighting under overcast, then the metrics and what reads them
+    assert jobs == {"build_env": 1, "env_spectrum": 1, "env_spectra": 1, "render_capture": 1,
+                    "relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1, "all": 1}
     assert "results/captures/sphere/overcast/test" in plan.stdout
 
 
-def test_a_corrupt_environment_fails_naming_the_file_and_leaves_no_output(repo, run):
-    env = run / "results/envs/museum.exr"
-    good = env.read_bytes()
-    try:
-        env.write_bytes(b"garbage")  # newer than the captures: their render must rerun
-        failed = snakemake(repo, run, "results/captures/sphere/museum/test", check=False)
-        assert failed.returncode != 0
-        assert "museum.exr: not a readable OpenEXR file" in failed.stderr
-        capture_dir = run / "results/captures/sphere/museum"
-        assert not (capture_dir / "test").exists() and not (capture_dir / ".test.partial").exists()
-    finally:
-        env.write_bytes(good)
+def test_a_corrupt_environment_fails_naming_the_file_and_leaves_no_output(repo, run, tmp_path):
+    import shutil
+
+    # On a copy of the run: the failed render removes its output, which later plans would redo.
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy, symlinks=True)
+    (copy / "results/envs/museum.exr").write_bytes(b"garbage")  # newer than the captures: their render must rerun
+    failed = snakemake(repo, copy, "results/captures/sphere/museum/test", check=False)
+    assert failed.returncode != 0
+    assert "museum.exr: not a readable OpenEXR file" in failed.stderr
+    capture_dir = copy / "results/captures/sphere/museum"
+    assert not (capture_dir / "test").exists() and not (capture_dir / ".test.partial").exists()
 
 
 def test_observations_follow_the_documented_layout(run):
@@ -150,12 +160,182 @@ def test_every_method_writes_loadable_textures_and_a_decreasing_loss(run):
         assert len(loss) == 150 and loss[-1] < 0.8 * loss[0]
 
 
-def test_parameter_mse_table_covers_every_method(run):
+def test_mitsuba_methods_write_textures_and_one_loss_per_step(repo, run):
     import pandas as pd
 
-    table = pd.read_csv(run / "results/tables/parameter_mse.tsv", sep="\t")
-    assert set(table.columns) == {"object", "env", "poses", "method", "metric", "value"}
-    assert set(table.method) == {"spectrum", "freq", "freq_noshadow", "freq_nomask", "rh2001"}
-    assert set(table.object) == {"sphere"}  # the re-imported copy has no ground truth
-    average = table[table.metric == "mse_average"]
-    assert len(average) == 5 and average.value.between(0.0, 1.0).all()
+    assert {"mitsuba", "freq+mitsuba"} <= set(tiny_methods(repo))
+    estimates = run / "results/estimates/sphere/studio/gt"
+    for method in ("mitsuba", "freq+mitsuba"):
+        for name in ("base_color", "roughness", "metallic"):
+            texture = read_exr(estimates / method / f"{name}.exr")
+            assert texture.shape[:2] == (32, 32) and 0.0 <= texture.min() and texture.max() <= 1.0
+            assert (estimates / method / f"{name}.png").is_file()
+        loss = pd.read_csv(estimates / method / "loss.tsv", sep="\t", dtype={"view": str})
+        assert sorted(loss.view) == ["000", "001", "002", "003"]  # tiny.yaml: 1 epoch, one view per step
+        assert (loss.epoch == 1).all() and np.isfinite(loss.loss).all() and (estimates / method / "loss.png").is_file()
+        bench = (run / f"results/benchmarks/mitsuba_svbrdf/sphere_studio_gt_{method}.tsv").read_text().splitlines()
+        assert float(bench[1].split("\t")[0]) > 0
+    # Both move their start: 0.5, or the freq estimate (4 steps of Adam move a
+    # texel by at most about 4 lr; freq is on average about 0.2 away from 0.5).
+    assert np.abs(read_exr(estimates / "mitsuba/base_color.exr") - 0.5).max() > 0.01
+    change = np.abs(read_exr(estimates / "freq+mitsuba/base_color.exr") - read_exr(estimates / "freq/base_color.exr"))
+    assert 0.0 < change.max() and change.mean() < 0.1
+
+
+HELD_OUT = ["museum", "sunny", "overcast"]  # tiny.yaml captures under studio only
+
+
+def test_metrics_csv_has_every_row(repo, run):
+    import pandas as pd
+
+    methods = tiny_methods(repo)
+    table = pd.read_csv(run / "results/tables/metrics.csv", keep_default_na=False)
+    assert list(table.columns) == ["object", "env", "poses", "method", "relight_env", "metric", "value"]
+    table["value"] = table.value.astype(float)
+    synthetic = table[table.object == "sphere"]
+    assert (synthetic.env == "studio").all() and (table.poses == "gt").all()
+    # parameter MSE: every method, synthetic captures only (the re-imported copy has no ground truth)
+    for metric in ("mse_base_color", "mse_roughness", "mse_metallic", "mse_average"):
+        rows = table[table.metric == metric]
+        assert sorted(rows.method) == sorted(methods) and set(rows.object) == {"sphere"}
+        assert rows.value.between(0.0, 1.0).all() and (rows.relight_env == "").all()
+    # relighting: every method under every held-out environment, never the capture's own
+    for metric in ("psnr_h", "psnr_l", "ssim", "mse"):
+        rows = table[table.metric == metric]
+        assert sorted(zip(rows.method, rows.relight_env)) == sorted((m, r) for m in methods for r in HELD_OUT)
+        assert np.isfinite(rows.value).all() and set(rows.object) == {"sphere"}
+    assert table[table.metric == "ssim"].value.between(-1.0, 1.0).all()
+    # the entropy-error correlation of freq (and mitsuba, if run)
+    pearson = table[table.metric == "pearson_entropy_error"]
+    assert sorted(pearson.method) == sorted(m for m in ("freq", "mitsuba") if m in methods)
+    assert pearson.value.between(-1.0, 1.0).all()
+    # time and memory of every method on every capture, real ones included
+    timing = table[table.metric.isin(["time_s", "max_rss_mb", "time_total_s"])]
+    assert len(timing) == 3 * len(methods) * 2 and set(timing.object) == {"sphere", "sphere_copy"}
+    wide = timing.pivot_table(index=["object", "method"], columns="metric", values="value")
+    assert (wide.time_s > 0).all() and (wide.time_total_s >= wide.time_s).all()
+    bench = run / "results/benchmarks"
+    spectrum = sum(pd.read_csv(bench / f"{rule}/sphere_studio_gt.tsv", sep="\t")["s"].iloc[0]
+                   for rule in ("fit_sh", "spectrum_search"))
+    assert wide.loc[("sphere", "spectrum"), "time_total_s"] == pytest.approx(spectrum, rel=1e-4)
+    ratios = table[table.metric == "speed_ratio_vs_mitsuba"]
+    assert len(ratios) == (2 * len(methods) if "mitsuba" in methods else 0)
+
+
+def test_relit_images_cover_every_test_view(run):
+    test = run / "results/captures/sphere/museum/test"
+    names = cameras_from_json(read_json(test / "cameras.json")).names
+    relit = run / "results/relight/sphere/studio/gt/freq/museum"
+    for name in names:
+        assert read_exr(relit / f"images/{name}.exr").shape == read_exr(test / f"images/{name}.exr").shape
+    assert read_png(relit / "preview.png").shape == read_png(test / "preview.png").shape
+    assert not (run / "results/relight/sphere/studio/gt/freq/studio").exists()  # not held out
+
+
+def test_relighting_the_true_textures_reproduces_the_reference_exactly(repo, run, tmp_path):
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(run, copy, symlinks=True)
+    estimate = copy / "results/estimates/sphere/studio/gt/freq"
+    for name in ("base_color", "roughness", "metallic"):
+        shutil.copy(copy / f"results/objects/sphere/{name}.exr", estimate / f"{name}.exr")
+    snakemake(repo, copy, "--force", "results/relight/sphere/studio/gt/freq/museum")
+    test = copy / "results/captures/sphere/museum/test"
+    for name in cameras_from_json(read_json(test / "cameras.json")).names:
+        relit = read_exr(copy / f"results/relight/sphere/studio/gt/freq/museum/images/{name}.exr")
+        np.testing.assert_array_equal(relit, read_exr(test / f"images/{name}.exr"))  # same scene, settings and seed
+
+
+def test_changing_relight_envs_renders_only_the_new_environments(repo, run, tmp_path):
+    changed = tmp_path / "relight.yaml"
+    changed.write_text("evaluate:\n  relight_envs: [museum, studio]\n")
+    plan = snakemake(repo, run, "-n", extra_config=[changed])
+    jobs = planned_jobs(plan.stdout)
+    assert jobs == {"relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1, "all": 1}
+    assert "results/relight/sphere/studio/gt/freq/studio" in plan.stdout
+
+
+TABLE_STEMS = ("table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "claims")
+
+
+def test_tables_and_claims_follow_the_metrics(run):
+    import pandas as pd
+
+    tables = run / "results/tables"
+    for stem in TABLE_STEMS:
+        assert (tables / f"{stem}.md").read_text().startswith("### ")
+        tex = (tables / f"{stem}.tex").read_text()
+        assert r"\begin{tabular}" in tex and rf"\label{{tab:{stem}}}" in tex
+    metrics = pd.read_csv(tables / "metrics.csv")
+    for method in ("freq", "spectrum"):
+        mse = metrics[(metrics.method == method) & (metrics.metric == "mse_average")].value.mean()
+        row = next(line for line in (tables / "table2_parameters.md").read_text().splitlines()
+                   if line.startswith("| ") and f"({method}) | here |" in line)
+        assert f"| {mse:.3f} (" in row  # the run's number, in its environment's column
+    claims = [line.split(" | ") for line in (tables / "claims.md").read_text().splitlines()[4:] if line.startswith("| ")]
+    assert len(claims) == 9 and all(cells[3] in ("yes", "no", "not run") for cells in claims)
+    page = (tables / "tables.html").read_text()
+    assert all(f"Table {n}:" in page for n in (1, 2, 4, 5)) and "<script" not in page
+
+
+def test_report_figures_are_written_per_capture(run):
+    for capture in ("sphere/studio", "sphere_copy/studio_copy"):
+        figure = read_png(run / f"results/figures/{capture}/gt/maps.png")
+        assert figure.shape[0] > 600 and figure.shape[1] > 400  # a row per method
+    assert read_png(run / "results/figures/sphere/studio/gt/relight.png").shape[1] > 600
+    assert not (run / "results/figures/sphere_copy/studio_copy/gt/relight.png").exists()  # no relighting: real
+
+
+def test_changing_a_metric_setting_reruns_only_metrics_and_report_rules(repo, run, tmp_path):
+    changed = tmp_path / "metric.yaml"
+    changed.write_text("evaluate:\n  hdr_clip: 2.0\n")
+    jobs = planned_jobs(snakemake(repo, run, "-n", extra_config=[changed]).stdout)
+    assert jobs == {"metrics": 1, "tables": 1, "relight_figure": 1, "all": 1}
+
+
+def _colour_count(image, rgb) -> int:
+    return int((image[..., :3] == np.array(rgb, dtype=np.uint8)).all(axis=-1).sum())
+
+
+def test_report_builds_and_a_headless_browser_shows_tables_and_figures(repo, run, tmp_path):
+    import os
+
+    report = tmp_path / "report.html"
+    snakemake(repo, run, "--report", str(report))
+    html = report.read_text()
+    for result in ("results/tables/tables.html", "results/tables/claims.html",
+                   "results/figures/sphere/studio/gt/maps.png", "results/figures/sphere/studio/gt/relight.png"):
+        assert result in html
+    shots = tmp_path / "shots"
+    screenshot = subprocess.run([sys.executable, str(repo / "bench/report_screenshot.py"), str(report), "--out", str(shots)],
+                                capture_output=True, text=True, timeout=900)
+    if screenshot.returncode == 2 and not os.environ.get("CI"):
+        pytest.skip(f"no Chromium to screenshot the report ({screenshot.stderr.strip()})")
+    assert screenshot.returncode == 0, screenshot.stderr[-3000:]
+    images = {name: read_png(shots / f"{name}.png") for name in ("workflow", "tables", "claims", "maps", "relight")}
+    assert images["workflow"].shape[:2] == (1000, 1600)
+    for name, image in images.items():
+        assert image[..., :3].std() > 10, f"{name}.png is nearly uniform"
+    # The tables page renders: its header cells (#eef) and, in the claims, the verdict colours.
+    assert _colour_count(images["tables"], (238, 238, 255)) > 20000
+    assert _colour_count(images["claims"], (238, 238, 255)) > 2000
+    assert _colour_count(images["claims"], (216, 245, 208)) + _colour_count(images["claims"], (248, 208, 208)) > 500
+    # The figures show: many colours right of the navigation pane (colour maps, renders;
+    # the landing page's rule graph has under a thousand).
+    for name in ("maps", "relight"):
+        right = images[name][:, images[name].shape[1] // 2:, :3].reshape(-1, 3)
+        assert len(np.unique(right, axis=0)) > 5000, f"{name}.png shows no figure"
+    assert _colour_count(images["workflow"], (238, 238, 255)) == 0  # the landing page is not the tables
+
+
+def test_sfm_on_too_small_a_capture_fails_in_one_line_and_leaves_no_poses(repo, run):
+    # 4 views of 32x32 pixels: COLMAP cannot register them, and says so.
+    failed = snakemake(repo, run, "results/poses/sphere/studio/colmap", check=False)
+    assert failed.returncode != 0
+    log = (run / "results/logs/colmap_poses/sphere_studio.log").read_text()
+    error = next(line for line in log.splitlines() if "colmap_poses failed" in line)
+    assert re.search(r"COLMAP registered (0|only \d) of 4 views", error) and "poses.colmap." in error
+    assert (run / "results/logs/colmap_poses/sphere_studio.colmap.log").stat().st_size > 0
+    poses = run / "results/poses/sphere/studio"
+    assert not (poses / "colmap").exists() and not (poses / ".colmap.partial").exists()

@@ -54,11 +54,24 @@ def check_config(config: dict[str, Any], schema: str | Path) -> None:
         raise ConfigError(
             f"config key capture_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
         )
+    relight_envs = config["evaluate"]["relight_envs"]
+    unknown = [e for e in relight_envs if e not in config["envs"]] if isinstance(relight_envs, list) else []
+    if unknown:
+        raise ConfigError(
+            f"config key evaluate.relight_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
+        )
     from .meshes import OBJECTS as CATALOGUE
 
-    if config["poses"]["source"] == "colmap":
-        # The SfM stage (issue 3) is not in the DAG yet; say so instead of a missing-input error.
-        raise ConfigError("config key poses.source: 'colmap' (pycolmap SfM) is not available yet; use 'gt'")
+    from .sfm import CONFIG_PREFIX, SfmOptions
+
+    colmap = config["poses"]["colmap"]
+    for key in ("seed", "num_threads"):  # set by the pipeline (config seed, rule threads)
+        if key in colmap:
+            raise ConfigError(f"config key {CONFIG_PREFIX}{key}: set by the pipeline, not in config")
+    try:
+        SfmOptions.from_config(colmap)
+    except ValueError as error:
+        raise ConfigError(f"config key {error}") from None
 
     for name, capture in config["real_captures"].items():
         if name in CATALOGUE:
