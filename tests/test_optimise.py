@@ -480,3 +480,19 @@ def test_bad_inputs_are_named(small: dict) -> None:
         op.OptimiseSettings(lr=-1)
     with pytest.raises(ValueError, match="regulariser must be one of"):
         op.OptimiseSettings(regulariser="l2")
+    with pytest.raises(ValueError, match="min_roughness must be in \\[0, 1\\), got 1.0"):
+        op.OptimiseSettings(min_roughness=1.0)
+
+
+def test_min_roughness_bounds_the_fit_from_below(small):
+    # Radiance of a mirror-like material: unbounded, the fit drives roughness towards 0.
+    truth = {"base_color": np.full((18, 3), 0.8), "roughness": np.full(18, 0.05), "metallic": np.ones(18)}
+    radiance = render(small, truth, "freq")
+    free, _ = run(small, radiance, "freq", iterations=60, lr=0.05)
+    held, _ = run(small, radiance, "freq", iterations=60, lr=0.05, min_roughness=0.3)
+    assert free["roughness"].min() < 0.3
+    assert held["roughness"].min() == pytest.approx(0.3) and held["roughness"].max() <= 1.0
+    # The bound is a lower limit only: texels that are truly rough stay where the data put them.
+    rough = dict(truth, roughness=np.full(18, 0.7), metallic=np.zeros(18))
+    fitted, _ = run(small, render(small, rough, "freq"), "freq", iterations=60, lr=0.05, min_roughness=0.3)
+    assert np.all(fitted["roughness"] > 0.4)

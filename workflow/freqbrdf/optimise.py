@@ -153,6 +153,12 @@ class OptimiseSettings:
         fit is at iteration 0; methods without shadowing fit once).
     tv_weight : float
         Weight of the total variation of the parameter textures, ``>= 0``.
+    min_roughness : float
+        Lower bound of the fitted roughness, in [0, 1). Below the band limit
+        of the views the lobe filter barely changes the model, so roughness
+        there is not identifiable and drifts to 0: mirror texels, which are
+        harmless for the fit but reflect a sun or a small lamp at full
+        strength when the textures are relit (README "Metrics").
     lmax : int
         Highest SH degree of ``Lg``.
     regulariser, lam, penalise_dc
@@ -177,6 +183,7 @@ class OptimiseSettings:
     eps: float = 1e-8
     refit_every: int = 50
     tv_weight: float = 1e-3
+    min_roughness: float = 0.0
     lmax: int = 6
     regulariser: str = "exp"
     lam: float = 1e-3
@@ -199,6 +206,8 @@ class OptimiseSettings:
             raise ValueError(f"eps must be a finite number > 0, got {self.eps!r}")
         if not (np.isfinite(self.tv_weight) and self.tv_weight >= 0):
             raise ValueError(f"tv_weight must be a finite number >= 0, got {self.tv_weight!r}")
+        if not 0.0 <= self.min_roughness < 1.0:
+            raise ValueError(f"min_roughness must be in [0, 1), got {self.min_roughness!r}")
         if self.regulariser not in REGULARISERS:
             raise ValueError(f"regulariser must be one of {REGULARISERS}, got {self.regulariser!r}")
         if self.regulariser != "none" and not (np.isfinite(self.lam) and self.lam > 0):
@@ -1081,6 +1090,7 @@ def optimise(
     )
     x = np.full((problem.n_texels, _N_PARAMS), 0.5) if init is None else pack_params(init, problem.n_texels)
     xp = x[problem.perm]  # internal order (see Problem)
+    xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     m1 = np.zeros_like(xp)
     m2 = np.zeros_like(xp)
     curve = np.empty(settings.iterations)
@@ -1100,6 +1110,7 @@ def optimise(
                 del flat
             curve[it], grad = _loss_and_gradient(xp, problem, light, masking, settings.tv_weight, pool)
             xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
+            xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     finally:
         if pool is not None:
             pool.shutdown()

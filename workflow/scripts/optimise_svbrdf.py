@@ -29,7 +29,8 @@ def main(smk, log):
                 t.reshape(resolution * resolution, 3)[texel] for name, t in spectrum.items()}
     sh, opt = smk.params.sh, smk.params.optimise
     settings = OptimiseSettings(iterations=opt["iterations"], lr=opt["lr"], refit_every=opt["refit_every"],
-                                tv_weight=opt["tv_weight"], lmax=sh["lmax"], regulariser=sh["regulariser"],
+                                tv_weight=opt["tv_weight"], min_roughness=opt["min_roughness"],
+                                lmax=sh["lmax"], regulariser=sh["regulariser"],
                                 lam=sh["lambda"], penalise_dc=sh["penalise_dc"], workers=smk.threads)
     start = time.perf_counter()
     params, curve = optimise(np.load(obs / "radiance.npy"), weight, np.load(obs / "wo_local.npy"),
