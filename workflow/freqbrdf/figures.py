@@ -1,9 +1,9 @@
 """Per-capture figures of the report: recovered maps against ground truth with
 the entropy and error maps, and relit renders beside the ground-truth renders.
 
-Kept apart from :mod:`freqbrdf.plots` on purpose: rules declare the library
-modules they run as inputs, and only the report rules use these figures, so
-editing them reruns nothing upstream.
+Kept apart from :mod:`freqbrdf.plots` (whose figure helpers it shares) on
+purpose: rules declare the library modules they run as inputs, and only the
+report rules use these figures, so editing them reruns nothing upstream.
 """
 
 from __future__ import annotations
@@ -13,25 +13,11 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .io import atomic_path, to_srgb, tonemap
+from .io import to_srgb, tonemap
 from .metrics import parameter_error_map
+from .plots import _pyplot, _save
 
 GREY = "0.85"  # outside the UV atlas (or not scored)
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: str | os.PathLike) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100, bbox_inches="tight", format="png")
-    _pyplot().close(fig)
 
 
 def atlas_masks(resolution: int, texel: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -153,7 +139,7 @@ def capture_maps_figure(
     if shown_error is not None:
         fig.colorbar(shown_error, ax=axes[1:, 3].tolist(), shrink=0.5, label="squared error")
     fig.suptitle(title, fontsize=10)
-    _save(fig, path)
+    _save(fig, path, dpi=100)
     return mse
 
 
@@ -187,7 +173,7 @@ def relight_figure(
         ax.text(0.5, 0.5, "no relighting renders for this capture", ha="center", va="center")
         ax.set_axis_off()
         fig.suptitle(title, fontsize=10)
-        _save(fig, path)
+        _save(fig, path, dpi=100)
         return
     cols = 1 + len(methods)
     fig, axes = plt.subplots(len(envs), cols, figsize=(cols * 1.9, len(envs) * 2.0 + 0.4), squeeze=False,
@@ -210,4 +196,4 @@ def relight_figure(
     for ax, name in zip(axes[0], ("ground truth", *methods)):
         ax.set_title(name, fontsize=9)
     fig.suptitle(title, fontsize=10)
-    _save(fig, path)
+    _save(fig, path, dpi=100)
