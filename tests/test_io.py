@@ -108,3 +108,18 @@ def test_atomic_directory_replaces_only_on_success(tmp_path):
             raise RuntimeError("interrupted")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["capture"]  # no partial directory left
     assert [p.name for p in target.iterdir()] == ["a.txt"]  # the old complete output is untouched
+
+
+def test_read_svbrdf_dir_reads_the_three_textures_of_a_directory(tmp_path):
+    from freqbrdf.io import read_svbrdf_dir, write_exr
+
+    rng = np.random.default_rng(0)
+    textures = {"base_color": rng.random((8, 8, 3)), "roughness": rng.random((8, 8)), "metallic": rng.random((8, 8))}
+    for name, texture in textures.items():
+        write_exr(tmp_path / f"{name}.exr", texture.astype(np.float32))
+    read = read_svbrdf_dir(tmp_path)
+    for name, texture in textures.items():
+        np.testing.assert_array_equal(read[name], texture.astype(np.float32))
+    (tmp_path / "metallic.exr").unlink()
+    with pytest.raises(Exception, match="metallic.exr"):
+        read_svbrdf_dir(tmp_path)

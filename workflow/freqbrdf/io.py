@@ -266,6 +266,13 @@ def read_svbrdf(base_color: str | os.PathLike, roughness: str | os.PathLike, met
     return textures
 
 
+def read_svbrdf_dir(directory: str | os.PathLike) -> dict[str, np.ndarray]:
+    """:func:`read_svbrdf` of ``base_color.exr``, ``roughness.exr`` and
+    ``metallic.exr`` in one directory (an object's or an estimate's)."""
+    directory = Path(directory)
+    return read_svbrdf(*(directory / f"{name}.exr" for name in ("base_color", "roughness", "metallic")))
+
+
 def read_views(capture_dir: str | os.PathLike, names: list[str] | tuple[str, ...], width: int, height: int) -> tuple[np.ndarray, np.ndarray, int]:
     """Load the HDR views and coverage masks of a capture.
 

@@ -7,18 +7,21 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.cameras import cameras_from_json
-from freqbrdf.io import atomic_path, read_exr, read_json, read_svbrdf, read_views
+from freqbrdf.io import atomic_path, read_exr, read_json, read_svbrdf_dir, read_views
 from freqbrdf.logs import run_script
-from freqbrdf.metrics import PARAMETERS, parameter_error_map, parameter_mse, pearson, relight_scores
+from freqbrdf.metrics import parameter_error_map, parameter_mse, pearson, relight_scores
 from freqbrdf.spectral import observed_texels
 
 COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
 
 
-def _textures(directory):
-    return read_svbrdf(*(Path(directory) / f"{name}.exr" for name in PARAMETERS))
+@cache
+def _truth(obj):
+    """Ground-truth textures of an object (read once, shared by its captures and methods)."""
+    return read_svbrdf_dir(f"results/objects/{obj}")
 
 
+@cache
 def _scored_texels(obj, env, poses):
     """Flat atlas indices of the texels some training view observes (what parameter MSE scores)."""
     obs = Path(f"results/observations/{obj}/{env}/{poses}")
@@ -30,8 +33,8 @@ def parameter_rows(synthetic, entropy_methods):
     """mse_* of every method on every synthetic capture; pearson_entropy_error of the entropy methods."""
     rows = []
     for obj, env, poses, method in synthetic:
-        truth = _textures(f"results/objects/{obj}")
-        estimate = _textures(f"results/estimates/{obj}/{env}/{poses}/{method}")
+        truth = _truth(obj)
+        estimate = read_svbrdf_dir(f"results/estimates/{obj}/{env}/{poses}/{method}")
         texels = _scored_texels(obj, env, poses)
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")
         rows += [key | dict(metric=f"mse_{k}", value=v) for k, v in parameter_mse(truth, estimate, texels).items()]

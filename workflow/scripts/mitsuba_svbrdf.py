@@ -8,7 +8,7 @@ import pandas as pd
 
 from freqbrdf.cameras import cameras_from_json
 from freqbrdf.inverse import TEXTURES, InverseSettings, constant_textures, optimise_textures
-from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_json, read_svbrdf, read_views, write_exr
+from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_json, read_svbrdf_dir, read_views, write_exr
 from freqbrdf.logs import run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import loss_figure, texture_preview
@@ -19,7 +19,7 @@ def start_textures(smk) -> dict[str, np.ndarray]:
     resolution = smk.params.resolution
     if "init" not in smk.input.keys():
         return constant_textures(resolution)
-    start = read_svbrdf(*(Path(smk.input.init) / f"{name}.exr" for name in TEXTURES))
+    start = read_svbrdf_dir(smk.input.init)
     if start["base_color"].shape[:2] != (resolution, resolution):
         raise ValueError(f"{smk.input.init}: textures are {start['base_color'].shape[:2]}, "
                          f"config textures.resolution is {resolution}")

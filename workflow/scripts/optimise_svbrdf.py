@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_svbrdf, write_exr
+from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_svbrdf_dir, write_exr
 from freqbrdf.logs import run_script
 from freqbrdf.optimise import OptimiseSettings, optimise
 from freqbrdf.plots import loss_figure, texture_preview
@@ -24,7 +24,7 @@ def main(smk, log):
     irradiance = irradiance_at_normals(project_equirect(read_exr(smk.input.envmap), 2), texels["normal"])
     init = None
     if smk.params.optimise["init"] == "spectrum":
-        spectrum = read_svbrdf(*(Path(smk.input.init) / f"{n}.exr" for n in ("base_color", "roughness", "metallic")))
+        spectrum = read_svbrdf_dir(smk.input.init)
         init = {name: t.reshape(resolution * resolution, -1)[texel].squeeze(-1) if t.ndim == 2 else
                 t.reshape(resolution * resolution, 3)[texel] for name, t in spectrum.items()}
     sh, opt = smk.params.sh, smk.params.optimise

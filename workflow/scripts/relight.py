@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from freqbrdf.cameras import cameras_from_json, mitsuba_to_world
-from freqbrdf.io import atomic_directory, read_exr, read_json, read_svbrdf, write_exr
+from freqbrdf.io import atomic_directory, read_exr, read_json, read_svbrdf_dir, write_exr
 from freqbrdf.logs import run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import contact_sheet
@@ -22,7 +22,7 @@ def main(smk, log):
         raise ValueError(f"{test}/cameras.json: views are {cameras.width}x{cameras.height}, "
                          f"render.resolution is {render['resolution']}")
     estimate = Path(smk.input.estimate)
-    textures = read_svbrdf(*(estimate / f"{name}.exr" for name in ("base_color", "roughness", "metallic")))
+    textures = read_svbrdf_dir(estimate)
     # Exactly the reference renders' scene (render_capture): same mesh, environment,
     # integrator, film, sample count and seed, so that a perfect estimate
     # reproduces the reference image and the score carries no Monte Carlo noise floor.

@@ -6,11 +6,9 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.figures import atlas_masks, capture_maps_figure, relight_figure
-from freqbrdf.io import read_exr, read_svbrdf
+from freqbrdf.io import read_exr, read_svbrdf, read_svbrdf_dir
 from freqbrdf.logs import run_script
 from freqbrdf.spectral import observed_texels
-
-PARAMETERS = ("base_color", "roughness", "metallic")
 
 
 def maps(smk, log):
@@ -22,8 +20,7 @@ def maps(smk, log):
         entropy = entropy[..., 0]
     inside, seen = atlas_masks(entropy.shape[0], texel, observed)
     truth = read_svbrdf(*smk.input.truth) if smk.input.truth else None
-    estimates = {method: read_svbrdf(*(Path(d) / f"{n}.exr" for n in PARAMETERS))
-                 for method, d in zip(smk.params.methods, smk.input.estimates)}
+    estimates = {method: read_svbrdf_dir(d) for method, d in zip(smk.params.methods, smk.input.estimates)}
     w = smk.wildcards
     mse = capture_maps_figure(smk.output[0], truth, estimates, entropy, inside, seen,
                               f"{w.object} captured under {w.env} ({w.poses} poses): "
