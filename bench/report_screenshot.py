@@ -85,11 +85,14 @@ def page_for_view(report_html: str, suffix: str | None) -> str:
     return head + script + sep + tail
 
 
-def screenshot(chromium: str, page: Path, out: Path, size: tuple[int, int], budget_ms: int = 15000) -> None:
+def screenshot(chromium: str, page: Path, out: Path, size: tuple[int, int], budget_ms: int = 30000) -> None:
     """Render ``page`` headless and write a PNG of the window.
 
     ``--virtual-time-budget`` lets the page's scripts (React, Vega) and the
     timer above run before the capture; ``--no-sandbox`` is needed as root.
+    At 15 s a figure was once still blank on a loaded machine (image decoding
+    does not wait for virtual time); idle virtual time is skipped, so a larger
+    budget costs little.
     """
     command = [
         chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--hide-scrollbars",
