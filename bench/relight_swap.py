@@ -1,0 +1,91 @@
+"""Which parameter's error costs a method its relighting score?
+
+Relights one capture's estimate exactly as rule ``relight`` does (same scene,
+sample count and seed as the reference test views), once as estimated and
+once with each texture in turn replaced by the ground truth, plus the ground
+truth with its roughness raised to ``--min-roughness`` (what an estimator
+bounded below at that value could reach at best). Scores are the metrics
+rule's (PSNR-H, PSNR-L, SSIM, MSE over the fully covered pixels).
+
+Needs a finished default run in the working directory (``results/``):
+
+    python bench/relight_swap.py                                  # sphere/studio, freq
+    python bench/relight_swap.py --capture torus/sunny --method mitsuba
+
+Writes ``bench/out/relight_swap_{object}_{env}_{method}.tsv``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from freqbrdf.cameras import cameras_from_json, mitsuba_to_world
+from freqbrdf.config import derived_seed
+from freqbrdf.io import read_exr, read_json, read_svbrdf_dir, read_views
+from freqbrdf.metrics import relight_scores
+from freqbrdf.mitsuba_setup import setup_mitsuba
+from freqbrdf.render import capture_scene, principled_bsdf, render_views
+
+TEXTURES = ("base_color", "roughness", "metallic")
+
+
+def variants(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray], min_roughness: float) -> dict[str, dict]:
+    """The estimate, the estimate with one true texture each, and the bounded truth."""
+    out = {"estimate": estimate}
+    out |= {f"estimate, true {name}": {**estimate, name: truth[name]} for name in TEXTURES}
+    out[f"truth, roughness >= {min_roughness:g}"] = {**truth, "roughness": np.maximum(truth["roughness"], min_roughness)}
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--capture", default="sphere/studio", help="object/env of a synthetic capture")
+    parser.add_argument("--method", default="freq")
+    parser.add_argument("--poses", default="gt")
+    parser.add_argument("--min-roughness", type=float, default=0.3)
+    parser.add_argument("--config", default="config/config.yaml", help="the run's config (render settings, seed, envs)")
+    parser.add_argument("--threads", type=int, default=2)
+    args = parser.parse_args()
+
+    obj, env = args.capture.split("/")
+    config = yaml.safe_load(Path(args.config).read_text())
+    render = config["render"]
+    results = Path("results")
+    truth = read_svbrdf_dir(results / "objects" / obj)
+    estimate = read_svbrdf_dir(results / "estimates" / obj / env / args.poses / args.method)
+    mi = setup_mitsuba(threads=args.threads)
+
+    rows = []
+    for relight_env in [name for name in config["envs"] if name != env]:
+        test = results / "captures" / obj / relight_env / "test"
+        cameras = cameras_from_json(read_json(test / "cameras.json"), test / "cameras.json")
+        references, coverage, _ = read_views(test, cameras.names, cameras.width, cameras.height)
+        masks = [c >= 1.0 - 1e-6 for c in coverage]  # evaluate.mask_min_coverage 1 (PNG quantisation)
+        to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
+        seed = derived_seed(config["seed"], "render", obj, relight_env, "test")
+        for name, textures in variants(truth, estimate, args.min_roughness).items():
+            scene = capture_scene(mi, results / "objects" / obj / "mesh.ply", principled_bsdf(mi, **textures),
+                                  read_exr(results / "envs" / f"{relight_env}.exr"), width=cameras.width,
+                                  height=cameras.height, fov_x_deg=render["fov_deg"], spp=render["spp"],
+                                  max_depth=render["max_depth"])
+            relit = list(render_views(mi, scene, to_world, seed=seed))
+            scores = relight_scores(relit, list(references), masks, clip=config["evaluate"]["hdr_clip"],
+                                    normalise=config["evaluate"]["hdr_normalise"])
+            rows.append({"relight_env": relight_env, "textures": name} | scores)
+            print(rows[-1], flush=True)
+
+    table = pd.DataFrame(rows)
+    out = Path("bench/out") / f"relight_swap_{obj}_{env}_{args.method}.tsv"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(out, sep="\t", index=False, float_format="%.3f")
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
+    print(f"\nwritten {out}")
+
+
+if __name__ == "__main__":
+    main()
