@@ -65,7 +65,8 @@ def main() -> None:
         test = results / "captures" / obj / relight_env / "test"
         cameras = cameras_from_json(read_json(test / "cameras.json"), test / "cameras.json")
         references, coverage, _ = read_views(test, cameras.names, cameras.width, cameras.height)
-        masks = [c >= 1.0 - 1e-6 for c in coverage]  # evaluate.mask_min_coverage 1 (PNG quantisation)
+        # as the metrics rule scores them (the tolerance absorbs the masks' PNG quantisation)
+        masks = [c >= config["evaluate"]["mask_min_coverage"] - 1e-6 for c in coverage]
         to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
         seed = derived_seed(config["seed"], "render", obj, relight_env, "test")
         for name, textures in variants(truth, estimate, args.min_roughness).items():
