@@ -24,12 +24,12 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from freqbrdf.cameras import cameras_from_json, mitsuba_to_world
+from freqbrdf.cameras import cameras_from_json
 from freqbrdf.config import derived_seed
 from freqbrdf.io import read_exr, read_json, read_svbrdf_dir, read_views
 from freqbrdf.metrics import relight_scores
 from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.render import capture_scene, principled_bsdf, render_views
+from freqbrdf.render import relit_views
 
 TEXTURES = ("base_color", "roughness", "metallic")
 
@@ -67,14 +67,12 @@ def main() -> None:
         references, coverage, _ = read_views(test, cameras.names, cameras.width, cameras.height)
         # as the metrics rule scores them (the tolerance absorbs the masks' PNG quantisation)
         masks = [c >= config["evaluate"]["mask_min_coverage"] - 1e-6 for c in coverage]
-        to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
-        seed = derived_seed(config["seed"], "render", obj, relight_env, "test")
+        seed = derived_seed(config["seed"], "render", obj, relight_env, "test")  # rules/relight.smk's
+        envmap = read_exr(results / "envs" / f"{relight_env}.exr")
         for name, textures in variants(truth, estimate, args.min_roughness).items():
-            scene = capture_scene(mi, results / "objects" / obj / "mesh.ply", principled_bsdf(mi, **textures),
-                                  read_exr(results / "envs" / f"{relight_env}.exr"), width=cameras.width,
-                                  height=cameras.height, fov_x_deg=render["fov_deg"], spp=render["spp"],
-                                  max_depth=render["max_depth"])
-            relit = list(render_views(mi, scene, to_world, seed=seed))
+            relit = list(relit_views(mi, results / "objects" / obj / "mesh.ply", textures, envmap, cameras,
+                                     fov_x_deg=render["fov_deg"], spp=render["spp"], max_depth=render["max_depth"],
+                                     seed=seed))
             scores = relight_scores(relit, list(references), masks, clip=config["evaluate"]["hdr_clip"],
                                     normalise=config["evaluate"]["hdr_normalise"])
             rows.append({"relight_env": relight_env, "textures": name} | scores)

@@ -14,6 +14,7 @@ from types import ModuleType
 
 import numpy as np
 
+from .cameras import Cameras, mitsuba_to_world
 from .sh import equirect_directions
 
 
@@ -186,6 +187,46 @@ def render_views(mi: ModuleType, scene, to_world: np.ndarray, seed: int) -> Iter
         view_seed = (int(seed) + k * 0x9E3779B1) & 0xFFFFFFFF
         image = mi.render(scene, params=params, seed=view_seed)
         yield np.array(image, dtype=np.float32)
+
+
+def relit_views(
+    mi: ModuleType,
+    mesh: str | Path,
+    textures: dict[str, np.ndarray],
+    envmap: np.ndarray,
+    cameras: Cameras,
+    *,
+    fov_x_deg: float,
+    spp: int,
+    max_depth: int,
+    seed: int,
+) -> Iterator[np.ndarray]:
+    """SVBRDF textures on the mesh under an environment, rendered from every camera.
+
+    The scene and sample sequence of the reference views (rule
+    ``render_capture``) when given their settings and seed, so that the true
+    textures reproduce the reference images, noise and all.
+
+    Parameters
+    ----------
+    textures : dict
+        ``base_color`` (R, R, 3), ``roughness`` and ``metallic`` (R, R), in [0, 1].
+    envmap : ndarray, shape (H, 2H, 3)
+        Equirectangular radiance.
+    cameras : Cameras
+        Poses (OpenCV convention) and image size of the views.
+    fov_x_deg, spp, max_depth, seed
+        As for :func:`capture_scene` and :func:`render_views`.
+
+    Yields
+    ------
+    ndarray, shape (H, W, 3), float32
+        Linear radiance of each view in turn.
+    """
+    scene = capture_scene(mi, mesh, principled_bsdf(mi, **textures), envmap, width=cameras.width,
+                          height=cameras.height, fov_x_deg=fov_x_deg, spp=spp, max_depth=max_depth)
+    to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
+    yield from render_views(mi, scene, to_world, seed)
 
 
 def _cell_directions(height: int, width: int, rows: np.ndarray, cols: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray]:

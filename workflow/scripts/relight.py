@@ -3,14 +3,12 @@
 import time
 from pathlib import Path
 
-import numpy as np
-
-from freqbrdf.cameras import cameras_from_json, mitsuba_to_world
+from freqbrdf.cameras import cameras_from_json
 from freqbrdf.io import atomic_directory, read_exr, read_json, read_svbrdf_dir, write_exr
 from freqbrdf.logs import run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import contact_sheet
-from freqbrdf.render import capture_scene, principled_bsdf, render_views
+from freqbrdf.render import relit_views
 
 
 def main(smk, log):
@@ -21,21 +19,17 @@ def main(smk, log):
     if (cameras.width, cameras.height) != (render["resolution"], render["resolution"]):
         raise ValueError(f"{test}/cameras.json: views are {cameras.width}x{cameras.height}, "
                          f"render.resolution is {render['resolution']}")
-    estimate = Path(smk.input.estimate)
-    textures = read_svbrdf_dir(estimate)
+    textures = read_svbrdf_dir(smk.input.estimate)
     # Exactly the reference renders' scene (render_capture): same mesh, environment,
     # integrator, film, sample count and seed, so that a perfect estimate
     # reproduces the reference image and the score carries no Monte Carlo noise floor.
-    scene = capture_scene(
-        mi, smk.input.mesh, principled_bsdf(mi, **textures), read_exr(smk.input.envmap),
-        width=cameras.width, height=cameras.height, fov_x_deg=render["fov_deg"],
-        spp=render["spp"], max_depth=render["max_depth"],
-    )
-    to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
+    relit = relit_views(mi, smk.input.mesh, textures, read_exr(smk.input.envmap), cameras,
+                        fov_x_deg=render["fov_deg"], spp=render["spp"], max_depth=render["max_depth"],
+                        seed=smk.params.seed)
     start = time.perf_counter()
     with atomic_directory(smk.output[0]) as tmp:
         previews = []
-        for name, image in zip(cameras.names, render_views(mi, scene, to_world, seed=smk.params.seed)):
+        for name, image in zip(cameras.names, relit):
             write_exr(tmp / "images" / f"{name}.exr", image)
             if len(previews) < 8:  # the reference capture's preview.png shows the same first 8 views
                 previews.append(image)
