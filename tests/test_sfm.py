@@ -303,7 +303,7 @@ def test_alignment_undoes_a_known_similarity_of_the_reconstruction(capture, reco
     np.testing.assert_allclose(S2 @ T, S, atol=1e-6)
 
 
-def test_reconstruct_is_deterministic_quiet_and_logs_phases(capture, reconstruction, tmp_path, capfd, caplog):
+def test_reconstruct_is_repeatable_quiet_and_logs_phases(capture, reconstruction, tmp_path, capfd, caplog):
     path, ref = capture
     rec, _ = reconstruction
     log = logging.getLogger("test_sfm")
@@ -312,7 +312,10 @@ def test_reconstruct_is_deterministic_quiet_and_logs_phases(capture, reconstruct
     first, second = sfm.registered_poses(rec), sfm.registered_poses(again)
     assert sorted(first) == sorted(second)
     for name in first:
-        np.testing.assert_array_equal(first[name][0], second[name][0])
+        # Usually bit-identical; COLMAP's thread scheduling has moved pose
+        # entries by up to 6e-3 (sfm module docstring); a wrong registration
+        # moves rotation entries by order 1.
+        np.testing.assert_allclose(first[name][0], second[name][0], rtol=0, atol=0.02)
     out, err = capfd.readouterr()
     assert "feature_extraction" not in out + err and "incremental" not in out + err
     messages = " | ".join(r.getMessage() for r in caplog.records)

@@ -13,7 +13,12 @@ in :mod:`freqbrdf.cameras`, so ``K`` and ``world_to_camera`` carry over as they
 are. COLMAP image names are ``{view name}.png``.
 
 Determinism (measured with pycolmap 4.2.1 on the CPU, 2 threads): two runs
-with the same seed give bit-identical poses. That needs three things, all
+with the same seed usually give bit-identical poses; in 3 of 17 repeated
+runs (one of them beside a CPU-bound process) poses differed by up to 6e-3
+in an entry of the unaligned world-to-camera matrix, so some thread-order
+dependence inside COLMAP remains (the mapper on one thread did not differ in
+7 loaded runs, but neither did 4 loaded runs of the default). Bit-identity
+needs three things, all
 done in :func:`reconstruct`: COLMAP's PRNG is seeded
 (``pycolmap.set_random_seed``, and ``random_seed`` of the two-view RANSAC and
 of ``IncrementalPipelineOptions``, which COLMAP forwards to the mapper and
