@@ -1,24 +1,28 @@
 """Time, peak memory and accuracy of the gradient-descent estimator (freqbrdf.optimise).
 
 Timing cases (each in a fresh Python process, so its peak RSS is its own):
-`optimise` on 256x256 texels x 24 views, 150 iterations, lmax 6, init 0.5,
-for ``freq`` (three refits of the shadowed light) and ``rh2001`` (one fit),
-with 2 and 1 threads. Target: < 10 s on 2 cores (the paper: 3 s on a GPU at
-512x512). Inputs are the real observations of ``results/observations/sphere/
-studio/gt`` when they exist (read-only), else synthetic ones of the same shape.
+`optimise` on 256x256 texels x 24 views, 150 iterations, the light at degree
+16 (config ``optimise.lmax``), grid start, for ``freq`` (three refits of the
+shadowed light) and ``rh2001`` (one evaluation), with 2 and 1 threads.
+Inputs are the real observations of ``results/observations/sphere/studio/gt``
+when they exist (read-only), else synthetic ones of the same shape.
 
-Accuracy (needs the default pipeline's results): parameter MSE against the
+Accuracy (needs the pipeline's results): parameter MSE against the
 ground-truth textures over observed texels, for every method started from
-0.5 and from the spectrum-only estimate, next to the spectrum-only estimate
-itself. E is the irradiance of the environment's degree-2 SH at the texel
-normals (`spectral.irradiance_at_normals`); SH fit settings are the
-pipeline defaults (lmax 6, ``exp``, lambda 1e-3, unpenalised DC).
+the grid (the default), from 0.5 and from the spectrum-only estimate, next to
+the spectrum-only estimate itself.
+
+Sweep (``--sweep``): parameter MSE of ``freq`` for each setting of
+`SWEEP` on the given captures; run on the tuning set (config/tuning.yaml,
+README "Tuning set"), never on the captures the default run reports.
 
     python bench/optimise_bench.py                          # timing + accuracy on sphere/studio
     python bench/optimise_bench.py --captures sphere/studio torus/sunny
     python bench/optimise_bench.py --no-accuracy
+    python bench/optimise_bench.py --sweep --captures die/museum die/overcast vase/museum vase/overcast
 
-Writes ``bench/out/optimise.tsv`` (timing) and ``bench/out/optimise_accuracy.tsv``.
+Writes ``bench/out/optimise.tsv`` (timing), ``bench/out/optimise_accuracy.tsv``
+and ``bench/out/optimise_sweep.tsv``.
 Time is one run after a warm-up run in the same process; "traced" memory is
 the tracemalloc peak of the ``optimise`` call (numpy reports its buffers),
 "max RSS" the peak resident size of the whole process (interpreter, numpy and
@@ -50,24 +54,45 @@ TIMING_CASES = {
 }
 ACCURACY_METHODS = ("freq", "freq_noshadow", "freq_nomask", "rh2001")
 GROUPS = ("base_color", "roughness", "metallic")
+LMAX = 20
+# label: OptimiseSettings overrides of a sweep run (the rest: the defaults of config/config.yaml)
+DEFAULTS = {"iterations": 150, "lr": 0.02, "tv_weight": 1e-3, "refit_every": 50}
+SWEEP = {
+    "default": {},
+    "lr 0.01": {"lr": 0.01},
+    "lr 0.05": {"lr": 0.05},
+    "tv 0": {"tv_weight": 0.0},
+    "tv 0.01": {"tv_weight": 0.01},
+    "start 0.5": {"grid_start": False},
+    "min_roughness 0.2": {"min_roughness": 0.2},
+    "min_roughness auto (0.287)": {"min_roughness": 0.287},
+    "lmax 16": {"lmax": 16},
+    "lr 0.05, tv 0.01": {"lr": 0.05, "tv_weight": 0.01},
+    "lr 0.05, tv 0.03": {"lr": 0.05, "tv_weight": 0.03},
+    "lr 0.05, tv 0.1": {"lr": 0.05, "tv_weight": 0.1},
+    "lr 0.05, tv 0.03, min_roughness auto": {"lr": 0.05, "tv_weight": 0.03, "min_roughness": 0.287},
+    "lr 0.05, tv 0.03, start 0.5": {"lr": 0.05, "tv_weight": 0.03, "grid_start": False},
+}
 
 
 def load_capture(capture: str) -> dict | None:
     """Observations, texels and irradiance of ``object/env`` (gt poses), or None if absent."""
-    from freqbrdf import sh, spectral
     from freqbrdf.io import read_exr
+    from freqbrdf.light import irradiance
 
     obj, env = capture.split("/")
     obs = RESULTS / "observations" / obj / env / "gt"
     envmap = RESULTS / "envs" / f"{env}.exr"
-    names = ("radiance", "weight", "wo_local", "incoming")
+    names = ("radiance", "weight", "wo_local")
     if not (all((obs / f"{n}.npy").is_file() for n in names) and (obs / "texels.npz").is_file() and envmap.is_file()):
         return None
     data = {n: np.load(obs / f"{n}.npy") for n in names}
     texels = np.load(obs / "texels.npz")
     data["texel"] = texels["texel"]
     data["resolution"] = int(texels["resolution"])
-    data["irradiance"] = spectral.irradiance_at_normals(sh.project_equirect(read_exr(envmap), 2), texels["normal"])
+    data["frame"] = np.stack([texels["tangent"], texels["bitangent"], texels["normal"]], axis=1)
+    data["envmap"] = read_exr(envmap)
+    data["irradiance"] = irradiance(data["envmap"], texels["normal"])
     data["source"] = f"results/observations/{capture}/gt"
     return data
 
@@ -96,25 +121,27 @@ def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> di
     def light(d: np.ndarray) -> np.ndarray:
         return 0.3 + 0.2 * d[..., 1:2] + np.exp((d @ lamps.T - 1.0) / 0.05) @ colours
 
-    incoming = light(wr)
+    from freqbrdf.light import irradiance
+
     env = light(sh.equirect_directions(128, 256))
     kd = rng.uniform(0, 1, (n_tex, 1, 3))
-    radiance = (0.5 * kd + 0.3 * incoming) * (weight > 0)[..., None]
+    radiance = (0.5 * kd + 0.3 * light(wr)) * (weight > 0)[..., None]
     f32 = np.float32
     return {
         "radiance": radiance.astype(f32), "weight": weight.astype(f32), "wo_local": wo.astype(f32),
-        "incoming": incoming.astype(f32), "texel": np.arange(n_tex), "resolution": n_side,
-        "irradiance": spectral.irradiance_at_normals(sh.project_equirect(env, 2), normal),
-        "source": "synthetic",
+        "frame": frame, "envmap": env, "texel": np.arange(n_tex), "resolution": n_side,
+        "irradiance": irradiance(env, normal), "source": "synthetic",
     }
 
 
-def optimise_capture(data: dict, method: str, init: dict | None, **settings) -> tuple[dict, np.ndarray]:
+def optimise_capture(data: dict, method: str, init: dict | None, lmax: int = LMAX, **settings) -> tuple[dict, np.ndarray]:
+    from freqbrdf.light import light_quadrature
     from freqbrdf.optimise import OptimiseSettings, optimise
 
     return optimise(
-        data["radiance"], data["weight"], data["wo_local"], data["incoming"], data["irradiance"],
-        data["texel"], data["resolution"], init, method, OptimiseSettings(**settings),
+        data["radiance"], data["weight"], data["wo_local"], data["frame"], data["irradiance"],
+        data["texel"], data["resolution"], light_quadrature(data["envmap"], lmax), init, method,
+        OptimiseSettings(**settings),
     )
 
 
@@ -122,7 +149,7 @@ def run_timing(name: str) -> dict:
     """Run one timing case in this process; return its measurements."""
     method, workers = TIMING_CASES[name]
     data = load_capture(TIMING_CAPTURE) or synthetic_capture()
-    settings = {"workers": workers, "iterations": 150, "lmax": 6}
+    settings = {"workers": workers, "iterations": 150}
     optimise_capture(data, method, None, **settings)  # warm-up (imports, first page faults)
     start = time.perf_counter()
     _, curve = optimise_capture(data, method, None, **settings)
@@ -140,10 +167,9 @@ def run_timing(name: str) -> dict:
         "views": n_views,
         "observed_pairs": int((data["weight"] > 0).sum()),
         "iterations": 150,
-        "lmax": 6,
+        "lmax": LMAX,
         "inputs": data["source"],
         "seconds": round(seconds, 2),
-        "target_s": 10.0,
         "traced_peak_mb": round(traced_peak / 2**20, 1),
         "max_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "final_loss": round(float(curve[-1]), 5),
@@ -188,7 +214,7 @@ def run_accuracy(capture: str) -> list[dict]:
     truth = {g: v[texel] for g, v in gt.items()}
     rows = []
     spectrum = read_textures(RESULTS / "estimates" / obj / env / "gt" / "spectrum")
-    inits: dict[str, dict | None] = {"0.5": None}
+    inits: dict[str, dict | None] = {"grid": None, "0.5": "constant"}
     if spectrum is not None:
         spectrum = {g: np.clip(v[texel], 0.0, 1.0) for g, v in spectrum.items()}
         rows.append(mse_row("spectrum", capture, spectrum, truth, observed, ""))
@@ -196,10 +222,36 @@ def run_accuracy(capture: str) -> list[dict]:
     for method in ACCURACY_METHODS:
         for init_name, init in inits.items():
             start = time.perf_counter()
-            est, _ = optimise_capture(data, method, init, workers=2)
+            start_kw = {"grid_start": False} if init == "constant" else {}
+            est, _ = optimise_capture(data, method, None if init == "constant" else init, workers=2, **start_kw)
             rows.append(mse_row(f"{method} (init {init_name})", capture, est, truth, observed,
                                 round(time.perf_counter() - start, 2)))
             print(rows[-1], flush=True)
+    return rows
+
+
+def run_sweep(captures: list[str], labels: list[str] | None = None) -> list[dict]:
+    """Parameter MSE of freq for every setting of SWEEP (or those named), per capture and averaged."""
+    rows = []
+    loaded = {}
+    for capture in captures:
+        obj = capture.split("/")[0]
+        data, gt = load_capture(capture), read_textures(RESULTS / "objects" / obj)
+        if data is None or gt is None:
+            raise SystemExit(f"{capture}: observations or ground truth missing; run the tuning preset first")
+        loaded[capture] = (data, {g: v[data["texel"]] for g, v in gt.items()}, (data["weight"] > 0).any(axis=1))
+    for label, overrides in SWEEP.items():
+        if labels and label not in labels:
+            continue
+        per_capture = []
+        for capture, (data, truth, observed) in loaded.items():
+            start = time.perf_counter()
+            est, _ = optimise_capture(data, "freq", None, workers=2, **(DEFAULTS | overrides))
+            per_capture.append(mse_row(label, capture, est, truth, observed, round(time.perf_counter() - start, 2)))
+            print(per_capture[-1], flush=True)
+        mean = {g: round(float(np.mean([r[g] for r in per_capture])), 4) for g in (*GROUPS, "mean")}
+        rows += per_capture + [{"capture": "mean", "estimate": label, **mean,
+                                "seconds": round(sum(r["seconds"] for r in per_capture), 2)}]
     return rows
 
 
@@ -219,11 +271,16 @@ def main() -> None:
     parser.add_argument("--captures", nargs="+", default=[TIMING_CAPTURE], help="object/env pairs for accuracy")
     parser.add_argument("--no-accuracy", action="store_true", help="timing only")
     parser.add_argument("--no-timing", action="store_true", help="accuracy only")
+    parser.add_argument("--sweep", action="store_true", help="only the settings sweep of freq on --captures")
+    parser.add_argument("--settings", nargs="+", help="sweep only these labels of SWEEP")
     args = parser.parse_args()
     if args.case:
         print(json.dumps(run_timing(args.case)))
         return
     OUT.mkdir(parents=True, exist_ok=True)
+    if args.sweep:
+        write_table(run_sweep(args.captures, args.settings), OUT / "optimise_sweep.tsv")
+        return
     if not args.no_timing:
         rows = []
         for name in TIMING_CASES:

@@ -39,7 +39,7 @@ wildcard_constraints:
     env="|".join(ENVS + [capture["env"] for capture in REAL_CAPTURES.values()]),
     split="|".join(SPLITS),
     poses="gt|colmap",
-    method="spectrum|freq|freq_noshadow|freq_nomask|rh2001|" + MITSUBA_METHODS,
+    method="spectrum|freq|freq_paper|freq_noshadow|freq_nomask|rh2001|" + MITSUBA_METHODS,
     relight_env="|".join(ENVS),
 
 

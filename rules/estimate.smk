@@ -4,13 +4,13 @@ ruleorder: spectrum_search > optimise_svbrdf
 
 rule optimise_svbrdf:
     """Per-texel SVBRDF by Adam through the frequency-domain forward model
-    (freq: shadowing and masking; freq_noshadow, freq_nomask: ablations;
+    (freq: shadowing and masking; freq_paper: the light pre-filtered as in the paper; freq_noshadow, freq_nomask: ablations;
     rh2001: neither, Ramamoorthi-Hanrahan)."""
     input:
         observations="results/observations/{object}/{env}/{poses}",
         envmap=envmap_file,
         init="results/estimates/{object}/{env}/{poses}/spectrum",
-        code=library("optimise", "spectral", "sh", "textures", "plots"),
+        code=library("optimise", "light", "observations", "cameras", "meshes", "spectral", "sh", "envmaps", "textures", "plots"),
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
     params:

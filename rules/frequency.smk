@@ -28,7 +28,7 @@ rule spectrum_search:
         sh="results/sh/{object}/{env}/{poses}",
         observations="results/observations/{object}/{env}/{poses}",
         envmap=envmap_file,
-        code=library("spectral", "sh", "textures", "plots"),
+        code=library("spectral", "light", "observations", "cameras", "meshes", "envmaps", "sh", "textures", "plots"),
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/spectrum"),
         entropy=directory("results/entropy/{object}/{env}/{poses}"),

@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from freqbrdf import light as lt
 from freqbrdf import optimise as op
 from freqbrdf import sh
 from freqbrdf import spectral as sp
 
-LMAX = 6
+LMAX = 8  # degree of the model's light in these tests (the pipeline's default is 16)
 
 
 # --------------------------------------------------------------------------
@@ -31,6 +32,7 @@ def synthetic_scene(n_tex: int, n_views: int, seed: int, drop: float = 0.2, n_la
     power up to and beyond degree 6) spread evenly over the sphere, so every
     texel's mirror hemisphere holds several lamps: all frequencies are lit.
     Radiance is left at 0 (the tests render it with the forward model).
+    ``light`` is the environment's quadrature at degree `LMAX`.
     """
     rng = np.random.default_rng(seed)
     normal = rng.normal(size=(n_tex, 3))
@@ -47,7 +49,6 @@ def synthetic_scene(n_tex: int, n_views: int, seed: int, drop: float = 0.2, n_la
     turn[:, 2, 2] = 1.0
     wo = np.einsum("tij,kj->tki", turn, local_hemisphere(n_views))
     weight = wo[..., 2] * (rng.random((n_tex, n_views)) >= drop)
-    mirror_world = np.einsum("tji,tkj->tki", frame, sp.mirror_directions(wo))
     lamps = sh.fibonacci_sphere(n_lamps)
     power = rng.uniform(0.5, 2.0, (n_lamps, 3))
     kappa = rng.uniform(50.0, 200.0, n_lamps)
@@ -57,14 +58,14 @@ def synthetic_scene(n_tex: int, n_views: int, seed: int, drop: float = 0.2, n_la
 
     env = light(sh.equirect_directions(128, 256))
     side = int(np.ceil(np.sqrt(n_tex)))
-    return {
-        "weight": weight,
-        "wo_local": wo,
-        "incoming": light(mirror_world),
-        "irradiance": sp.irradiance_at_normals(sh.project_equirect(env, 2), normal),
-        "texel": np.arange(n_tex),
-        "resolution": side,
-    }
+    return with_env({"weight": weight, "wo_local": wo, "frame": frame, "texel": np.arange(n_tex), "resolution": side},
+                    env)
+
+
+def with_env(scene: dict, env: np.ndarray) -> dict:
+    """``scene`` lit by the equirect map ``env``: its quadrature and irradiance added."""
+    return scene | {"envmap": env, "light": lt.light_quadrature(env, LMAX),
+                    "irradiance": lt.irradiance(env, scene["frame"][:, 2])}
 
 
 def random_params(n_tex: int, seed: int) -> dict[str, np.ndarray]:
@@ -79,18 +80,22 @@ def random_params(n_tex: int, seed: int) -> dict[str, np.ndarray]:
 
 
 def problem_of(scene: dict, radiance: np.ndarray | None = None, dtype: str = "float64", **kw) -> op.Problem:
-    b = np.zeros_like(scene["incoming"]) if radiance is None else radiance
+    b = np.zeros(scene["wo_local"].shape) if radiance is None else radiance
     return op.build_problem(
-        b, scene["weight"], scene["wo_local"], scene["incoming"], scene["irradiance"], scene["texel"],
+        b, scene["weight"], scene["wo_local"], scene["frame"], scene["irradiance"], scene["texel"],
         scene["resolution"], dtype, **kw,
     )
 
 
+def terms(scene: dict, problem: op.Problem, roughness: np.ndarray, shadowing: bool) -> np.ndarray:
+    return op.light_terms(roughness, problem, shadowing, scene["light"])
+
+
 def render(scene: dict, params: dict, method: str) -> np.ndarray:
     """Noise-free observations of ``params`` by the model of ``method`` itself."""
-    shadowing, masking = op.METHODS[method]
+    shadowing, masking, _ = op.METHODS[method]
     problem = problem_of(scene)
-    light = op.light_terms(params["roughness"], problem, shadowing, LMAX, penalise_dc=False)
+    light = terms(scene, problem, params["roughness"], shadowing)
     return op.forward(op.pack_params(params, problem.n_texels), problem, light, masking)
 
 
@@ -98,8 +103,8 @@ def run(
     scene: dict, radiance: np.ndarray, method: str, init: dict | None = None, **settings: object
 ) -> tuple[dict, np.ndarray]:
     return op.optimise(
-        radiance, scene["weight"], scene["wo_local"], scene["incoming"], scene["irradiance"], scene["texel"],
-        scene["resolution"], init, method, op.OptimiseSettings(**settings),
+        radiance, scene["weight"], scene["wo_local"], scene["frame"], scene["irradiance"], scene["texel"],
+        scene["resolution"], scene["light"], init, method, op.OptimiseSettings(**settings),
     )
 
 
@@ -110,7 +115,7 @@ def small() -> dict:
     scene = synthetic_scene(18, 10, seed=3, drop=0.3)
     scene["texel"] = np.sort(rng.choice(25, 18, replace=False))
     scene["resolution"] = 5
-    scene["radiance"] = rng.uniform(0.0, 1.5, scene["incoming"].shape)
+    scene["radiance"] = rng.uniform(0.0, 1.5, scene["wo_local"].shape)
     return scene
 
 
@@ -119,23 +124,24 @@ def small() -> dict:
 # --------------------------------------------------------------------------
 def test_methods_map_to_shadowing_and_masking() -> None:
     assert op.METHODS == {
-        "freq": (True, True),
-        "freq_noshadow": (False, True),
-        "freq_nomask": (True, False),
-        "rh2001": (False, False),
+        "freq": (True, True, False),
+        "freq_paper": (True, True, True),
+        "freq_noshadow": (False, True, False),
+        "freq_nomask": (True, False, False),
+        "rh2001": (False, False, False),
     }
 
 
 def test_smith_g1_is_one_at_normal_incidence_and_falls_toward_grazing() -> None:
     alpha = np.array([1e-3, 0.1, 0.5, 1.0])[:, None]
     cos = np.linspace(1.0, 0.01, 50)[None, :]
-    g1 = op.smith_g1(cos, alpha)
+    g1 = lt.smith_g1(cos, alpha)
     np.testing.assert_allclose(g1[:, 0], 1.0, rtol=0, atol=1e-15)
     assert np.all(np.diff(g1, axis=1) < 0)  # toward grazing
     assert np.all(np.diff(g1, axis=0)[:, 1:] < 0)  # rougher
     assert g1[-1, -1] < 0.03  # alpha 1 at 89.4 degrees
     # textbook value: alpha = 1, theta = 60 degrees -> tan^2 = 3, G1 = 2 / (1 + 2)
-    assert op.smith_g1(0.5, 1.0) == pytest.approx(2.0 / 3.0, rel=1e-14)
+    assert lt.smith_g1(0.5, 1.0) == pytest.approx(2.0 / 3.0, rel=1e-14)
 
 
 def test_schlick_fresnel_limits() -> None:
@@ -168,41 +174,52 @@ def test_atlas_neighbours_and_total_variation_by_hand() -> None:
 # --------------------------------------------------------------------------
 # light terms and forward model
 # --------------------------------------------------------------------------
-def test_light_terms_are_the_sh_filter_at_the_mirror_direction(small: dict) -> None:
-    """Spec from the per-degree terms equals sum_lm exp(-(alpha l)^2) Lg_lm Y_lm(w_r), with Lg from fit_sh."""
+def dense_shadowed_light(env: np.ndarray, normal: np.ndarray, alpha: np.ndarray, lmax: int) -> np.ndarray:
+    """Independent reference: SH of G1(n . w) L(w) over each upper hemisphere, by the map's own pixels."""
+    h, w = env.shape[:2]
+    d = sh.equirect_directions(h, w).reshape(-1, 3)
+    power = (env * sh.equirect_solid_angles(h, w)[:, None, None]).reshape(-1, 3)
+    cos = normal @ d.T
+    g = np.where(cos > 0, 2 / (1 + np.sqrt(1 + alpha[:, None] ** 2 * (1 - cos**2) / np.where(cos > 0, cos, 1) ** 2)), 0)
+    return np.einsum("tq,qc,qi->tic", g, power, sh.real_sh(d, lmax))
+
+
+def test_light_terms_are_the_sh_filter_of_the_shadowed_environment(small: dict) -> None:
+    """sum_l exp(-(alpha l)^2) P_l at each observation equals the lobe-filtered, shadowed light at the
+    world mirror direction, with Lg integrated independently over the map's pixels."""
     problem = problem_of(small)
     rough = np.linspace(0.2, 0.9, 18)
     alpha = rough**2
-    light = op.light_terms(rough, problem, True, LMAX, "exp", 1e-3, penalise_dc=False)
-    # independent reference, dense layout
-    w = small["weight"]
-    d = sp.mirror_directions(small["wo_local"])
-    shadowed = small["incoming"] * op.smith_g1(small["wo_local"][..., 2], alpha[:, None])[..., None]
-    lg = sp.fit_sh(d, shadowed, w, LMAX, "exp", 1e-3, penalise_dc=False)
-    filt = np.exp(-((alpha[:, None] * sh.sh_degrees(LMAX)) ** 2))  # (T, n)
-    spec_ref = np.einsum("tkn,tn,tnc->tkc", sh.real_sh(d, LMAX), filt, lg)
-    obs = w > 0
+    light = terms(small, problem, rough, True)
+    lg = dense_shadowed_light(small["envmap"], small["frame"][:, 2], alpha, LMAX)
+    mirror = np.einsum("tji,tkj->tki", small["frame"], small["wo_local"] * [-1, -1, 1])
+    filt = np.exp(-((alpha[:, None] * sh.sh_degrees(LMAX)) ** 2))
+    spec_ref = np.einsum("tkn,tn,tnc->tkc", sh.real_sh(mirror, LMAX), filt, lg)
+    obs = small["weight"] > 0
     t_idx = np.nonzero(obs)[0]
     spec = np.einsum("nl,nlc->nc", np.exp(-((alpha[t_idx, None] * np.arange(LMAX + 1)) ** 2)), light)
-    np.testing.assert_allclose(spec, spec_ref[obs], rtol=1e-10, atol=1e-12)
+    # the pixels are a 1.4-degree quadrature of the lamps, the model's nodes carry them band-limited
+    # (degree 48): they differ near the horizon, where G1 couples the light's high degrees to low ones
+    scale = np.abs(spec_ref[obs]).mean()
+    err = spec - spec_ref[obs]
+    assert np.sqrt(np.mean(err**2)) < 0.01 * scale
+    assert np.abs(err).max() < 0.04 * scale
 
 
-def test_unshadowed_light_terms_interpolate_a_band_limited_light() -> None:
-    rng = np.random.default_rng(5)
-    scene = synthetic_scene(4, 100, seed=5, drop=0.0)
-    coeffs = rng.normal(size=(4, sh.n_coeffs(LMAX), 3))
-    d = sp.mirror_directions(scene["wo_local"])
-    scene["incoming"] = np.einsum("tkn,tnc->tkc", sh.real_sh(d, LMAX), coeffs)
-    problem = problem_of(scene)
-    light = op.light_terms(np.zeros(4), problem, False, LMAX, "none")
-    # exact up to the tiny ridge of regulariser "none" (the hemisphere leaves the fit ill-conditioned)
-    np.testing.assert_allclose(light.sum(axis=1), scene["incoming"].reshape(-1, 3), rtol=0, atol=1e-3)
+def test_unshadowed_light_terms_are_the_environment_sh_at_the_mirror_direction(small: dict) -> None:
+    """Without shadowing the light is the whole environment's SH (Ramamoorthi and Hanrahan 2001)."""
+    problem = problem_of(small)
+    light = terms(small, problem, np.zeros(18), False)
+    coeffs = sh.project_equirect(small["envmap"], LMAX)
+    mirror = np.einsum("tji,tkj->tki", small["frame"], small["wo_local"] * [-1, -1, 1])
+    expected = sh.eval_sh(coeffs, mirror)[small["weight"] > 0]
+    np.testing.assert_allclose(light.sum(axis=1), expected, rtol=1e-5, atol=1e-6 * np.abs(expected).max())
 
 
 @pytest.mark.parametrize("method", list(op.METHODS))
 def test_forward_matches_a_direct_evaluation_of_the_model(small: dict, method: str) -> None:
     """B = (1 - m) base E / pi + F G1m sum_lm exp(-(alpha l)^2) Lg_lm Y_lm(w_r), written out independently."""
-    shadowing, masking = op.METHODS[method]
+    shadowing, masking, _ = op.METHODS[method]
     params = random_params(18, seed=4)
     params["roughness"][:3] = [0.0, 0.02, 1.0]  # the alpha clamp and the extremes
     base, m = params["base_color"], params["metallic"][:, None, None]
@@ -211,50 +228,54 @@ def test_forward_matches_a_direct_evaluation_of_the_model(small: dict, method: s
     cos = wo[..., 2]
     tan2 = (1 - cos**2) / cos**2
     g1 = 2 / (1 + np.sqrt(1 + alpha**2 * tan2))
-    d = wo * [-1, -1, 1]
-    shadowed = small["incoming"] * (g1[..., None] if shadowing else 1.0)
-    lg = sp.fit_sh(d, shadowed, w, LMAX, "exp", 1e-3, penalise_dc=False)
+    mirror = np.einsum("tji,tkj->tki", small["frame"], wo * [-1, -1, 1])
+    if shadowing:
+        lg = lt.shadowed_light(small["light"], small["frame"][:, 2], alpha[:, 0]).astype(np.float64)
+    else:
+        lg = np.broadcast_to(sh.project_equirect(small["envmap"], LMAX), (18, sh.n_coeffs(LMAX), 3))
     filt = np.exp(-((alpha * sh.sh_degrees(LMAX)) ** 2))
-    spec = np.einsum("tkn,tn,tnc->tkc", sh.real_sh(d, LMAX), filt, lg)
+    spec = np.einsum("tkn,tn,tnc->tkc", sh.real_sh(mirror, LMAX), filt, lg)
     r0 = 0.04 * (1 - m) + m * base[:, None, :]
     fresnel = r0 + (1 - r0) * (1 - cos[..., None]) ** 5
     expected = (1 - m) * base[:, None, :] * small["irradiance"][:, None, :] / np.pi + fresnel * (
         g1[..., None] if masking else 1.0
     ) * spec
     expected[w == 0] = 0.0
-    np.testing.assert_allclose(render(small, params, method), expected, rtol=1e-10, atol=1e-13)
+    # float32 light terms
+    np.testing.assert_allclose(render(small, params, method), expected, rtol=1e-5, atol=1e-6 * np.abs(expected).max())
 
 
 @pytest.mark.parametrize("method", list(op.METHODS))
 def test_rough_dielectric_under_constant_light(method: str) -> None:
     """metallic 0, roughness 1, constant light L0 (E = pi L0): B = base L0 + F G1m Spec, Spec = L0 unshadowed."""
-    shadowing, masking = op.METHODS[method]
-    scene = synthetic_scene(6, 24, seed=1)
+    shadowing, masking, _ = op.METHODS[method]
     l0 = np.array([0.7, 1.0, 1.3])
-    scene["incoming"] = np.broadcast_to(l0, scene["incoming"].shape).copy()
+    scene = with_env(synthetic_scene(6, 24, seed=1), np.broadcast_to(l0, (128, 256, 3)).copy())
+    # quadrature of the clamped cosine on a 64-row copy of the map (see tests/test_light.py)
+    np.testing.assert_allclose(scene["irradiance"], np.broadcast_to(np.pi * l0, (6, 3)), rtol=5e-3)
     scene["irradiance"] = np.broadcast_to(np.pi * l0, (6, 3)).copy()
     problem = problem_of(scene)
     base = np.random.default_rng(2).uniform(0.1, 0.9, (6, 3))
     params = {"base_color": base, "roughness": np.ones(6), "metallic": np.zeros(6)}
-    light = op.light_terms(params["roughness"], problem, shadowing, LMAX, penalise_dc=False)
+    light = terms(scene, problem, params["roughness"], shadowing)
     b = op.forward(op.pack_params(params, 6), problem, light, masking)
     cos = scene["wo_local"][..., 2]
     fresnel = op.schlick_fresnel(0.04, cos)[..., None]
-    g1 = op.smith_g1(cos, 1.0)[..., None]
+    g1 = lt.smith_g1(cos, 1.0)[..., None]
     obs = scene["weight"] > 0
     if not shadowing:
-        # an unpenalised DC fits a constant exactly: Spec = L0 for any alpha
-        np.testing.assert_allclose(light[:, 0], np.broadcast_to(l0, (problem.n_pairs, 3)), rtol=1e-9)
-        np.testing.assert_allclose(light[:, 1:], 0.0, atol=1e-9)
+        # a constant has only a DC term: Spec = L0 for any alpha
+        np.testing.assert_allclose(light[:, 0], np.broadcast_to(l0, (problem.n_pairs, 3)), rtol=1e-6)
+        np.testing.assert_allclose(light[:, 1:], 0.0, atol=1e-3)  # pixel quadrature of the map at degree 48
         expected = base[:, None, :] * l0 + fresnel * (g1 if masking else 1.0) * l0
-        np.testing.assert_allclose(b[obs], expected[obs], rtol=1e-9)
+        np.testing.assert_allclose(b[obs], expected[obs], rtol=1e-5)  # float32 light terms
     else:
-        # shadowing dims the light at grazing angles: the specular part lies between 0 and the unshadowed one
+        # shadowing and the horizon dim the light: the specular part lies between 0 and the unshadowed one
         spec = b - base[:, None, :] * l0
         upper = fresnel * (g1 if masking else 1.0) * l0
         assert np.all(spec[obs] > 0)
-        assert np.all(spec[obs] < upper[obs] * 1.05)
-        assert np.mean(spec[obs] / upper[obs]) < 0.95
+        assert np.all(spec[obs] < upper[obs])
+        assert np.mean(spec[obs] / upper[obs]) < 0.7
     assert np.all(b[~obs] == 0.0)
 
 
@@ -267,23 +288,18 @@ def test_variants_differ_only_where_they_should() -> None:
     diffuse = (kd * scene["irradiance"] / np.pi)[:, None, :]
     obs = scene["weight"] > 0
     spec = {m: render(scene, params, m) - diffuse for m in op.METHODS}
-    g1 = op.smith_g1(scene["wo_local"][..., 2], params["roughness"][:, None] ** 2)[..., None]
+    g1 = lt.smith_g1(scene["wo_local"][..., 2], params["roughness"][:, None] ** 2)[..., None]
     # masking multiplies the specular term by G1(theta_o) and nothing else
     np.testing.assert_allclose(spec["freq_noshadow"][obs], (g1 * spec["rh2001"])[obs], rtol=1e-10, atol=1e-13)
     np.testing.assert_allclose(spec["freq"][obs], (g1 * spec["freq_nomask"])[obs], rtol=1e-10, atol=1e-13)
     # shadowing changes the fitted light, hence only the specular term; without it the light ignores roughness
     assert not np.allclose(spec["freq"][obs], spec["freq_noshadow"][obs], rtol=1e-3)
-    l1 = op.light_terms(np.full(30, 0.2), problem, False)
-    l2 = op.light_terms(np.full(30, 0.9), problem, False)
+    l1 = terms(scene, problem, np.full(30, 0.2), False)
+    l2 = terms(scene, problem, np.full(30, 0.9), False)
     np.testing.assert_array_equal(l1, l2)
-    # at the smallest alpha, G1 ~ 1 and all four variants agree
-    smooth = dict(params, roughness=np.zeros(30))
-    b = {m: render(scene, smooth, m) for m in op.METHODS}
-    for m in op.METHODS:
-        np.testing.assert_allclose(b[m][obs], b["rh2001"][obs], rtol=2e-3)
     # the model is the diffuse term plus a positive specular term
     assert all(np.all(s[obs] > 0) for s in spec.values())
-    assert np.all(op.forward(x, problem, op.light_terms(params["roughness"], problem, True), True)[~obs] == 0)
+    assert np.all(op.forward(x, problem, terms(scene, problem, params["roughness"], True), True)[~obs] == 0)
 
 
 # --------------------------------------------------------------------------
@@ -291,12 +307,12 @@ def test_variants_differ_only_where_they_should() -> None:
 # --------------------------------------------------------------------------
 @pytest.mark.parametrize("method", list(op.METHODS))
 def test_gradient_matches_central_differences(small: dict, method: str) -> None:
-    shadowing, masking = op.METHODS[method]
+    shadowing, masking, _ = op.METHODS[method]
     problem = problem_of(small, small["radiance"], chunk_pairs=16)  # several chunks
     assert len(problem.chunks) > 3
     rng = np.random.default_rng(7)
     x = rng.uniform(0.1, 0.9, (18, 5))  # roughness >= 0.1: away from the alpha clamp
-    light = op.light_terms(x[:, 3], problem, shadowing)
+    light = terms(small, problem, x[:, 3], shadowing)
     tv_weight = 0.05  # large enough that TV is a sizeable part of every gradient
 
     def loss(xx: np.ndarray) -> float:
@@ -322,8 +338,8 @@ def test_float32_loss_and_gradient_match_float64(small: dict) -> None:
     p64 = problem_of(small, small["radiance"], "float64")
     p32 = problem_of(small, small["radiance"], "float32")
     x = np.random.default_rng(8).uniform(0.1, 0.9, (18, 5))
-    l64, g64 = op.loss_and_gradient(x, p64, op.light_terms(x[:, 3], p64, True), True)
-    l32, g32 = op.loss_and_gradient(x, p32, op.light_terms(x[:, 3], p32, True), True)
+    l64, g64 = op.loss_and_gradient(x, p64, terms(small, p64, x[:, 3], True), True)
+    l32, g32 = op.loss_and_gradient(x, p32, terms(small, p32, x[:, 3], True), True)
     assert l32 == pytest.approx(l64, rel=1e-5)
     np.testing.assert_allclose(g32, g64, rtol=1e-3, atol=1e-4 * np.abs(g64).max())
 
@@ -331,13 +347,13 @@ def test_float32_loss_and_gradient_match_float64(small: dict) -> None:
 def test_threads_and_chunks_do_not_change_results(small: dict) -> None:
     x = np.random.default_rng(9).uniform(0.1, 0.9, (18, 5))
     p1 = problem_of(small, small["radiance"], chunk_pairs=16)
-    light = op.light_terms(x[:, 3], p1, True)
+    light = terms(small, p1, x[:, 3], True)
     a = op.loss_and_gradient(x, p1, light, True, workers=1)
     b = op.loss_and_gradient(x, p1, light, True, workers=2)
     assert a[0] == b[0]
     np.testing.assert_array_equal(a[1], b[1])
     p2 = problem_of(small, small["radiance"], chunk_pairs=10_000)
-    c = op.loss_and_gradient(x, p2, op.light_terms(x[:, 3], p2, True), True)
+    c = op.loss_and_gradient(x, p2, terms(small, p2, x[:, 3], True), True)
     assert c[0] == pytest.approx(a[0], rel=1e-12)
     np.testing.assert_allclose(c[1], a[1], rtol=1e-10, atol=1e-15)
 
@@ -353,7 +369,7 @@ def capture() -> tuple[dict, dict]:
 
 @pytest.mark.parametrize("method", ["freq", "rh2001"])
 def test_self_consistency_recovers_the_parameters(capture: tuple[dict, dict], method: str) -> None:
-    """Noise-free observations of the model itself are fitted back from a constant 0.5.
+    """Noise-free observations of the model itself are fitted back from the grid start.
 
     Same refit schedule as `optimise` (every 50 iterations) and float32, but
     300 iterations instead of 150 and no TV: from the 0.5 start the light
@@ -373,19 +389,21 @@ def test_self_consistency_recovers_the_parameters(capture: tuple[dict, dict], me
     est, curve = run(scene, radiance, method, iterations=300, tv_weight=0.0, refit_every=50)
     mse = {k: float(np.mean((est[k] - truth[k]) ** 2)) for k in op.PARAM_NAMES}
     assert all(v < 1e-4 for v in mse.values()), mse
-    assert curve[-1] < 0.02 * curve[0]
+    assert curve[-1] < 0.5 * curve[0]
 
 
 def test_optimisation_decreases_the_loss_and_respects_bounds(capture: tuple[dict, dict]) -> None:
     scene, truth = capture
     radiance = render(scene, truth, "freq")
-    est, curve = run(scene, radiance, "freq", iterations=150, lr=0.1)  # a large step drives texels to the bounds
+    # from 0.5, a large step drives texels to the bounds
+    est, curve = run(scene, radiance, "freq", iterations=150, lr=0.1, grid_start=False)
     x = op.pack_params(est, 200)  # raises if outside [0, 1]
     assert ((x == 0.0) | (x == 1.0)).any()
     assert curve.shape == (150,)
-    # monotone-ish: every 25-iteration window ends below where it started, refits included
-    windows = curve.reshape(6, 25)
-    assert np.all(windows[:, -5:].mean(axis=1) < windows[:, :5].mean(axis=1))
+    # falls until it reaches the step's noise floor (refits included), then stays there
+    windows = curve.reshape(6, 25).mean(axis=1)
+    assert np.all(windows[:2] > windows[1:3])
+    assert windows[-1] < 1.1 * windows[2:].min()
     assert curve[-1] < 0.1 * curve[0]
 
 
@@ -447,7 +465,7 @@ def test_roughness_leaves_the_alpha_clamp() -> None:
 # --------------------------------------------------------------------------
 def test_bad_inputs_are_named(small: dict) -> None:
     def call(**over: object) -> None:
-        names = ("radiance", "weight", "wo_local", "incoming", "irradiance", "texel", "resolution")
+        names = ("radiance", "weight", "wo_local", "frame", "irradiance", "texel", "resolution", "light")
         args = {k: small[k] for k in names}
         args.update(over)
         method = args.pop("method", "freq")
@@ -478,8 +496,8 @@ def test_bad_inputs_are_named(small: dict) -> None:
         call(init={"base_color": init["base_color"], "roughness": np.zeros(18)})
     with pytest.raises(ValueError, match="lr must be a finite number > 0, got -1"):
         op.OptimiseSettings(lr=-1)
-    with pytest.raises(ValueError, match="regulariser must be one of"):
-        op.OptimiseSettings(regulariser="l2")
+    with pytest.raises(ValueError, match=r"frame must have shape \(18, 3, 3\)"):
+        call(frame=small["frame"][:, :2])
     with pytest.raises(ValueError, match="min_roughness must be in \\[0, 1\\), got 1.0"):
         op.OptimiseSettings(min_roughness=1.0)
 
@@ -496,3 +514,24 @@ def test_min_roughness_bounds_the_fit_from_below(small):
     rough = dict(truth, roughness=np.full(18, 0.7), metallic=np.zeros(18))
     fitted, _ = run(small, render(small, rough, "freq"), "freq", iterations=60, lr=0.05, min_roughness=0.3)
     assert np.all(fitted["roughness"] > 0.4)
+
+
+def test_identifiable_roughness_is_where_the_lobe_fits_below_the_degree() -> None:
+    """alpha (l* + 1) = sqrt(ln 20): the lobe keeps 5% of a point light's weight above l*."""
+    r = op.identifiable_roughness(20)
+    assert r == pytest.approx(np.sqrt(np.sqrt(np.log(20.0)) / 21.0), rel=1e-12)
+    assert np.exp(-((r**2 * 21) ** 2)) == pytest.approx(0.05, rel=1e-9)
+    assert op.identifiable_roughness(6) > op.identifiable_roughness(16) > r
+    with pytest.raises(ValueError, match="tail must be in"):
+        op.identifiable_roughness(20, tail=1.0)
+
+
+def test_partial_refit_matches_a_full_fit_of_the_moved_texels(small: dict) -> None:
+    problem = problem_of(small)
+    r1 = np.linspace(0.2, 0.9, 18)
+    r2 = r1.copy()
+    moved = np.array([1, 5, 6, 11])
+    r2[problem.observed[moved]] += 0.05
+    flat = terms(small, problem, r1, True)
+    op._refit_light(flat, r2, problem, small["light"], moved, workers=1)
+    np.testing.assert_allclose(flat, terms(small, problem, r2, True), rtol=1e-5, atol=1e-6)

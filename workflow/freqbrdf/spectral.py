@@ -68,6 +68,7 @@ from .sh import fibonacci_hemisphere, n_coeffs, power_spectrum, real_sh, sh_degr
 __all__ = [
     "REGULARISERS",
     "COMBINE_MODES",
+    "NORMALISATIONS",
     "R0_DIELECTRIC",
     "mirror_directions",
     "observed_texels",
@@ -76,6 +77,7 @@ __all__ = [
     "zero_pad_lower_hemisphere",
     "spectra",
     "default_grid",
+    "residual_width",
     "model_filters",
     "normalised_spectra",
     "spectrum_objective",
@@ -93,6 +95,7 @@ __all__ = [
 
 REGULARISERS = ("exp", "constant", "none")
 COMBINE_MODES = ("min", "luminance")
+NORMALISATIONS = ("light", "reference")
 R0_DIELECTRIC = 0.04  # Disney/Mitsuba principled: specular reflectance at normal incidence of a dielectric
 _NONE_RIDGE = 1e-9  # relative ridge of regulariser "none" (see fit_sh)
 _FIT_CHUNK_VALUES = 1 << 22  # float64 values of one chunk's design matrix (32 MB)
@@ -530,6 +533,31 @@ def _check_grid_values(ks_values: np.ndarray, alpha_values: np.ndarray) -> tuple
     return ks, alpha
 
 
+def residual_width(alpha: np.ndarray, a_prime: float) -> np.ndarray:
+    """Lobe width that acts on a light already low-passed by ``exp(-(a' l)^2)``.
+
+    Gaussian SH filters compose by adding squared widths, so the lobe
+    ``exp(-(alpha l)^2)`` of the unfiltered light is ``exp(-(w l)^2)`` of the
+    pre-filtered one with ``w = sqrt(alpha^2 - a'^2)`` (paper section 4.2: the
+    pre-filter a' on the incoming light only). Widths at or below a' give 0:
+    the pre-filtered light is itself the narrowest lobe the views resolve.
+
+    Parameters
+    ----------
+    alpha : numpy.ndarray
+        Lobe widths, any shape.
+    a_prime : float
+        Width of the pre-filter (>= 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        Same shape, float64, in ``[0, alpha]``.
+    """
+    a = np.asarray(alpha, dtype=np.float64)
+    return np.sqrt(np.maximum(a * a - float(a_prime) ** 2, 0.0))
+
+
 def model_filters(ks_values: np.ndarray, alpha_values: np.ndarray, lmax: int) -> np.ndarray:
     """Spectral filters ``K_s^2 exp(-2 (alpha l)^2)`` of every grid point, degrees 1..lmax.
 
@@ -573,6 +601,20 @@ def _normalise_rows(
     ok &= np.isfinite(sb).all(axis=1)
     scale = np.where(ok, 1.0 / np.where(ok, total, 1.0), 0.0)[:, None]
     return sb[:, 1:] * scale, sl[:, 1:] * scale, ok
+
+
+def _reference_rows(sb: np.ndarray, sl: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The authors' scaling of (N, lmax+1) spectra rows: per-degree power divided by (l + 1).
+
+    Returns the rows at degrees 1..lmax, the weight ``S_B'(0)^2 / lmax`` that
+    turns their sum of squared residuals into the reference code's D (the mean
+    over degrees times the outgoing DC power squared), and the usable rows.
+    """
+    scale = 1.0 / np.arange(1, sb.shape[1] + 1)
+    b, l = sb * scale, sl * scale
+    ok = np.isfinite(b).all(axis=1) & np.isfinite(l).all(axis=1) & (l[:, 1:].sum(axis=1) > 0)
+    weight = np.where(ok, b[:, 0] ** 2 / (sb.shape[1] - 1), 0.0)
+    return np.where(ok[:, None], b[:, 1:], 0.0), np.where(ok[:, None], l[:, 1:], 0.0), weight, ok
 
 
 def _check_min_relative_power(value: float) -> float:
@@ -791,6 +833,7 @@ def spectrum_search(
     chunk: int = 2048,
     workers: int = 1,
     return_objective: bool = False,
+    normalise: str = "light",
 ) -> SpectrumSearch:
     """Spectrum-only estimate of (K_s, alpha) and its entropy (METHOD section 6).
 
@@ -802,7 +845,9 @@ def spectrum_search(
     ks_values, alpha_values : numpy.ndarray
         Grid axes ``(n_ks,)`` and ``(n_alpha,)`` (e.g. `default_grid`).
     sigma : float
-        Noise scale of the normalised D (paper: 1e-2).
+        ``normalise="light"``: noise scale of the normalised D, ``p ~ exp(-D / (2 sigma^2))``
+        (paper Eq. 23: 1e-2). ``"reference"``: the reference code's temperature,
+        ``p ~ exp(-(D - D_min) / sigma)`` (1e-5 there).
     combine : {"min", "luminance"}
         How channel entropies are combined (`combine_entropy`; needs C == 3
         for "luminance").
@@ -818,6 +863,14 @@ def spectrum_search(
         Threads processing chunks concurrently (numpy releases the GIL).
     return_objective : bool
         Also return the full normalised D (``T n_ks n_alpha C`` float64 values).
+    normalise : {"light", "reference"}
+        ``light`` (default): both spectra divided by the light's total power
+        (module docstring), so D is free of the light's intensity.
+        ``reference``: the authors' code (svbrdf_uncertainty,
+        ``uncertainty/entropy.py``): per-degree power divided by ``l + 1``,
+        D the mean squared residual over degrees times the outgoing DC power
+        squared, so bright texels are more certain than dark ones in absolute
+        radiance units.
 
     Returns
     -------
@@ -838,6 +891,9 @@ def spectrum_search(
     chunk = _check_int(chunk, "chunk", 1)
     workers = _check_int(workers, "workers", 1)
     min_relative_power = _check_min_relative_power(min_relative_power)
+    _check_choice(normalise, "normalise", NORMALISATIONS)
+    # the reference code's temperature as the sigma of exp(-D / (2 sigma^2))
+    sigma_eff = np.sqrt(sigma / 2.0) if normalise == "reference" else sigma
     if observed is None:
         seen = np.ones(n_tex, bool)
     else:
@@ -858,18 +914,23 @@ def spectrum_search(
         stop = min(n_tex, start + chunk)
         t = stop - start
         # one row per (texel, channel): reductions run along contiguous rows
-        b, l, ok = _normalise_rows(
-            _to_rows(sb[start:stop].astype(np.float64)), _to_rows(sl[start:stop].astype(np.float64)), min_relative_power
-        )
+        rows_b, rows_l = _to_rows(sb[start:stop].astype(np.float64)), _to_rows(sl[start:stop].astype(np.float64))
+        if normalise == "reference":
+            b, l, weight, ok = _reference_rows(rows_b, rows_l)
+        else:
+            b, l, ok = _normalise_rows(rows_b, rows_l, min_relative_power)
         ok = ok.reshape(t, n_ch) & seen[start:stop, None]
-        d = _objective_rows(b, l, ks, alpha).reshape(t, n_ch, n_ks * n_alpha)
+        d = _objective_rows(b, l, ks, alpha)
+        if normalise == "reference":
+            d *= weight[:, None]
+        d = d.reshape(t, n_ch, n_ks * n_alpha)
         if not ok.all():
             d[~ok] = 0.0  # flat (uniform) likelihood where nothing is identifiable
         d4 = d.reshape(t, n_ch, n_ks, n_alpha)
         best = d.argmin(axis=2)
         ks_idx[start:stop], alpha_idx[start:stop] = np.divmod(best, n_alpha)
         d_min = np.take_along_axis(d, best[..., None], axis=2)[..., 0]
-        h_rgb[start:stop] = np.where(ok, _entropy_rows(d, sigma, d_min), 1.0)
+        h_rgb[start:stop] = np.where(ok, _entropy_rows(d, sigma_eff, d_min), 1.0)
         ident[start:stop] = ok
         # Profile likelihood over channels: one alpha per texel, K_s per channel.
         # The min over K_s runs as a loop of elementwise minima because numpy

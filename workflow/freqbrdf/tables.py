@@ -132,7 +132,7 @@ PAPER_TABLE5_METHODS: dict[str, str | None] = {
 # Display names of our methods.
 METHOD_LABELS: dict[str, str] = {
     "mitsuba": "Mitsuba", "freq": "Ours", "spectrum": "Ours-Spectrum Only", "freq+mitsuba": "Ours+Mitsuba",
-    "freq_noshadow": "Ours, no shadowing", "freq_nomask": "Ours, no masking", "rh2001": "RH2001 (neither)",
+    "freq_paper": "Ours, paper's band limit", "freq_noshadow": "Ours, no shadowing", "freq_nomask": "Ours, no masking", "rh2001": "RH2001 (neither)",
 }
 
 # ---------------------------------------------------------------------------

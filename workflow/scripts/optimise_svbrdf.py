@@ -1,5 +1,5 @@
 """Rule optimise_svbrdf: per-texel base colour, roughness and metallic by gradient descent
-through the frequency-domain forward model (methods freq, freq_noshadow, freq_nomask, rh2001)."""
+through the frequency-domain forward model (methods: freqbrdf.optimise.METHODS)."""
 
 import time
 from pathlib import Path
@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_svbrdf_dir, write_exr
+from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_json, read_svbrdf_dir, write_exr
+from freqbrdf.light import irradiance, light_quadrature
 from freqbrdf.logs import run_script
-from freqbrdf.optimise import OptimiseSettings, optimise
+from freqbrdf.optimise import METHODS, OptimiseSettings, identifiable_roughness, optimise
 from freqbrdf.plots import loss_figure, texture_preview
-from freqbrdf.sh import project_equirect
-from freqbrdf.spectral import irradiance_at_normals, observed_texels
+from freqbrdf.spectral import observed_texels
 from freqbrdf.textures import scatter_to_atlas
 
 
@@ -21,21 +21,28 @@ def main(smk, log):
     texels = np.load(obs / "texels.npz")
     texel, resolution = texels["texel"], int(texels["resolution"])
     weight = np.load(obs / "weight.npy")
-    irradiance = irradiance_at_normals(project_equirect(read_exr(smk.input.envmap), 2), texels["normal"])
+    envmap = read_exr(smk.input.envmap)
+    frame = np.stack([texels["tangent"], texels["bitangent"], texels["normal"]], axis=1)
     init = None
     if smk.params.optimise["init"] == "spectrum":
         spectrum = read_svbrdf_dir(smk.input.init)
         init = {name: t.reshape(resolution * resolution, -1)[texel].squeeze(-1) if t.ndim == 2 else
                 t.reshape(resolution * resolution, 3)[texel] for name, t in spectrum.items()}
-    sh, opt = smk.params.sh, smk.params.optimise
+    opt = smk.params.optimise
+    min_roughness = identifiable_roughness(opt["lmax"]) if opt["min_roughness"] == "auto" else opt["min_roughness"]
+    log.info("roughness bounded below by %.3f (optimise.min_roughness: %s)", min_roughness, opt["min_roughness"])
     settings = OptimiseSettings(iterations=opt["iterations"], lr=opt["lr"], refit_every=opt["refit_every"],
-                                tv_weight=opt["tv_weight"], min_roughness=opt["min_roughness"],
-                                lmax=sh["lmax"], regulariser=sh["regulariser"],
-                                lam=sh["lambda"], penalise_dc=sh["penalise_dc"], workers=smk.threads)
+                                tv_weight=opt["tv_weight"], min_roughness=min_roughness,
+                                grid_start=opt["init"] == "grid", workers=smk.threads)
     start = time.perf_counter()
-    params, curve = optimise(np.load(obs / "radiance.npy"), weight, np.load(obs / "wo_local.npy"),
-                             np.load(obs / "incoming.npy"), irradiance, texel, resolution, init=init,
-                             method=smk.wildcards.method, settings=settings)
+    # freq_paper: the light low-passed by the views' band limit a' (paper section 4.2)
+    prefilter = read_json(obs / "views.json")["band_limit"]["a_prime"] if METHODS[smk.wildcards.method].prefiltered else 0.0
+    light = light_quadrature(envmap, opt["lmax"], prefilter=prefilter)
+    e = irradiance(envmap, texels["normal"])
+    log.info("light at degree %d (pre-filter a' = %.3f) from %d quadrature nodes, irradiance at %d normals in %.1f s",
+             opt["lmax"], prefilter, len(light.directions), len(texel), time.perf_counter() - start)
+    params, curve = optimise(np.load(obs / "radiance.npy"), weight, np.load(obs / "wo_local.npy"), frame, e,
+                             texel, resolution, light, init=init, method=smk.wildcards.method, settings=settings)
     log.info("%s: %d iterations in %.1f s, loss %.4g -> %.4g", smk.wildcards.method, len(curve),
              time.perf_counter() - start, curve[0], curve[-1])
 

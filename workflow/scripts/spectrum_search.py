@@ -7,14 +7,14 @@ import numpy as np
 
 from freqbrdf.io import atomic_directory, read_exr, read_json, write_exr
 from freqbrdf.logs import run_script
+from freqbrdf.light import irradiance
 from freqbrdf.plots import entropy_figure, texel_spectra_figure, texture_preview
-from freqbrdf.sh import project_equirect
 from freqbrdf.spectral import (
     default_grid,
     diffuse_albedo,
-    irradiance_at_normals,
     observed_texels,
     principled_from_lobes,
+    residual_width,
     spectrum_search,
 )
 from freqbrdf.textures import scatter_to_atlas
@@ -31,17 +31,20 @@ def main(smk, log):
     s_b, s_l = np.load(sh / "spectra_outgoing.npy"), np.load(sh / "spectra_incoming.npy")
     ks_values, alpha_values = default_grid(settings["n_ks"], settings["n_alpha"], alpha_min=fit["a_prime"])
     start = time.perf_counter()
-    search = spectrum_search(s_b, s_l, ks_values, alpha_values, sigma=settings["sigma"], combine=settings["combine"],
-                             observed=observed, workers=smk.threads)
+    # S_L is of the light pre-filtered by a' (the views' band limit) and S_B is not: the
+    # grid's lobes act on S_L with the width that remains once a' is accounted for.
+    search = spectrum_search(s_b, s_l, ks_values, residual_width(alpha_values, fit["a_prime"]),
+                             sigma=settings["sigma"], combine=settings["combine"], observed=observed,
+                             workers=smk.threads, normalise=settings["normalise"])
     log.info("grid search %dx%d over %d texels in %.2f s", len(ks_values), len(alpha_values), len(observed),
              time.perf_counter() - start)
 
     # Diffuse albedo from degree 0, with the irradiance of the whole environment at each normal.
     ks = search.ks @ LUMINANCE
-    env_coeffs = project_equirect(read_exr(smk.input.envmap), 2)
     kd = diffuse_albedo(np.load(sh / "coeffs_outgoing.npy")[:, 0], np.load(sh / "coeffs_incoming.npy")[:, 0], ks,
-                        irradiance_at_normals(env_coeffs, texels["normal"]), unit_dc=np.load(sh / "unit_dc.npy"))
-    base, roughness, metallic = principled_from_lobes(np.clip(kd, 0.0, 1.0), ks, search.alpha)
+                        irradiance(read_exr(smk.input.envmap), texels["normal"]), unit_dc=np.load(sh / "unit_dc.npy"))
+    alpha = np.sqrt(search.alpha**2 + fit["a_prime"] ** 2)  # back from the residual width
+    base, roughness, metallic = principled_from_lobes(np.clip(kd, 0.0, 1.0), ks, alpha)
 
     resolution = int(texels["resolution"])
     known = observed & ~search.unobserved
