@@ -39,7 +39,7 @@ __all__ = [
     "downsample_equirect",
 ]
 
-_TEXEL_CHUNK = 4096  # texels per block of the (texels x nodes) shadowing matrix (~20 MB at 1250 nodes)
+_TEXEL_CHUNK = 1024  # texels per block of similar normals (the texels x nodes shadowing matrix: 15 MB)
 
 
 def smith_g1(cos_theta: np.ndarray, alpha: np.ndarray) -> np.ndarray:
@@ -202,14 +202,21 @@ def shadowed_light(
     n_ch = q.weighted_radiance.shape[1]
     # (Q, C * n): the light at each node times every basis function, channel-major
     lit = (q.weighted_radiance.astype(np.float32)[:, :, None] * q.basis[:, None, :]).reshape(len(q.basis), -1)
-    dirs = q.directions.T.astype(np.float32)
-    normals32 = n.astype(np.float32)
+    dirs = q.directions.astype(np.float32)
+    # Blocks of texels with similar normals (sorted by latitude band, then
+    # azimuth) need only the nodes above some texel's horizon, about two
+    # thirds of them: the others contribute exactly 0.
+    order = np.lexsort((np.arctan2(n[:, 0], -n[:, 2]), np.floor(4.0 * (n[:, 1] + 1.0))))
+    normals32 = n[order].astype(np.float32)
+    alpha_sorted = None if alpha is None else alpha[order]
     out = np.empty((n.shape[0], n_ch, n_coef), np.float32)
 
     def block(a: int) -> None:
         b = min(n.shape[0], a + _TEXEL_CHUNK)
-        g = _shadowing_matrix(normals32[a:b] @ dirs, None if alpha is None else alpha[a:b])
-        out[a:b] = (g @ lit).reshape(b - a, n_ch, n_coef)
+        cos = normals32[a:b] @ dirs.T  # (t, Q)
+        used = (cos > 0.0).any(axis=0)
+        g = _shadowing_matrix(cos[:, used], None if alpha_sorted is None else alpha_sorted[a:b])
+        out[order[a:b]] = (g @ lit[used]).reshape(b - a, n_ch, n_coef)
 
     starts = range(0, n.shape[0], _TEXEL_CHUNK)
     if workers > 1 and len(starts) > 1:
@@ -306,6 +313,10 @@ def irradiance(
     table = np.empty((grid.shape[0], env.shape[2]))
     for a in range(0, grid.shape[0], 1024):
         table[a : a + 1024] = np.maximum(grid[a : a + 1024] @ small_dirs.T, 0.0) @ small_power
-    smooth = sample_equirect(table.reshape(grid_height, 2 * grid_height, -1), n)
-    bright_dirs = equirect_directions(h, w).reshape(-1, 3)[top]
-    return smooth + np.maximum(n @ bright_dirs.T, 0.0) @ power[top]
+    out = sample_equirect(table.reshape(grid_height, 2 * grid_height, -1), n)
+    bright_dirs = equirect_directions(h, w).reshape(-1, 3)[top].T.astype(np.float32)
+    bright_power = power[top].astype(np.float32)
+    n32 = n.astype(np.float32)
+    for a in range(0, n.shape[0], 8192):
+        out[a : a + 8192] += np.maximum(n32[a : a + 8192] @ bright_dirs, 0.0) @ bright_power
+    return out
