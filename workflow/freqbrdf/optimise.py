@@ -1262,8 +1262,10 @@ def optimise(
     if init is not None:
         x = pack_params(init, problem.n_texels)
     elif settings.grid_start:
+        # shadowed at a middle roughness: with the unshadowed light (no horizon) 1 of the 64
+        # texels of the noise-free test in tests/test_light.py starts in another basin
         x = grid_start(
-            problem, light_terms(np.zeros(problem.n_texels), problem, False, light, settings.workers, basis),
+            problem, light_terms(np.full(problem.n_texels, 0.5), problem, shadowing, light, settings.workers, basis),
             masking, np.linspace(0.0, 1.0, settings.grid_roughness), np.linspace(0.0, 1.0, settings.grid_metallic),
             settings.workers,
         )
