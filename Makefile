@@ -21,14 +21,17 @@ run: $(BIN)/.installed
 test: $(BIN)/.installed report-deps
 	$(BIN)/python -m pytest -q tests
 
+# Speed, memory and accuracy measurements (bench/out/*.tsv); run on an idle machine.
 bench: $(BIN)/.installed
-	$(BIN)/python bench/render_bench.py
+	$(BIN)/python bench/spectral_bench.py
+	$(BIN)/python bench/optimise_bench.py
+	$(BIN)/python bench/observations_bench.py
 
 clean-results:
 	rm -rf results .snakemake
 
 # Headless Chromium for the report screenshots (bench/report_screenshot.py,
-# tests/test_report.py): Debian's chromium package, installed with apt-get as
+# tests/test_pipeline.py): Debian's chromium package, installed with apt-get as
 # root or through passwordless sudo. A machine where neither works only warns:
 # the screenshot test then skips, except under CI (CI=true), where it fails.
 CHROMIUM := $(shell command -v chromium || command -v chromium-browser || command -v google-chrome)

@@ -132,18 +132,6 @@ def test_methods_map_to_shadowing_and_masking() -> None:
     }
 
 
-def test_smith_g1_is_one_at_normal_incidence_and_falls_toward_grazing() -> None:
-    alpha = np.array([1e-3, 0.1, 0.5, 1.0])[:, None]
-    cos = np.linspace(1.0, 0.01, 50)[None, :]
-    g1 = lt.smith_g1(cos, alpha)
-    np.testing.assert_allclose(g1[:, 0], 1.0, rtol=0, atol=1e-15)
-    assert np.all(np.diff(g1, axis=1) < 0)  # toward grazing
-    assert np.all(np.diff(g1, axis=0)[:, 1:] < 0)  # rougher
-    assert g1[-1, -1] < 0.03  # alpha 1 at 89.4 degrees
-    # textbook value: alpha = 1, theta = 60 degrees -> tan^2 = 3, G1 = 2 / (1 + 2)
-    assert lt.smith_g1(0.5, 1.0) == pytest.approx(2.0 / 3.0, rel=1e-14)
-
-
 def test_schlick_fresnel_limits() -> None:
     r0 = np.array([0.04, 0.5, 0.9])
     np.testing.assert_allclose(op.schlick_fresnel(r0, 1.0), r0, rtol=1e-15)
