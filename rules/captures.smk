@@ -8,7 +8,7 @@ rule render_capture:
     input:
         **object_files("{object}"),
         envmap="results/envs/{env}.exr",
-        code=library("render", "cameras", "sh", "mitsuba_setup", "plots"),
+        code=library("render_capture"),
     output:
         directory("results/captures/{object}/{env}/{split}"),
     params:

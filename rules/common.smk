@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from freqbrdf.config import derived_seed
+from freqbrdf.dependencies import script_modules
 
 SYNTHETIC_OBJECTS = list(config["objects"])
 REAL_CAPTURES = config["real_captures"]  # name -> {dir, env}: captures imported from disk
@@ -44,12 +45,14 @@ wildcard_constraints:
 
 
 LIBRARY = Path(workflow.basedir) / "workflow" / "freqbrdf"
+SCRIPTS = Path(workflow.basedir) / "workflow" / "scripts"
 
 
-def library(*modules):
-    """Source files of library modules a rule runs; declaring them as inputs
-    makes an edit to the library rerun exactly the rules that use it."""
-    return [str(LIBRARY / f"{module}.py") for module in ("__init__", "logs", "io", *modules)]
+def library(script):
+    """Source files of the library modules that rule script ``workflow/scripts/{script}.py``
+    imports (transitively, `freqbrdf.dependencies`); declaring them as inputs makes
+    an edit to the library rerun exactly the rules that use it."""
+    return [str(LIBRARY / f"{module}.py") for module in script_modules(SCRIPTS / f"{script}.py", LIBRARY)]
 
 
 def object_files(name):

@@ -1,7 +1,7 @@
 rule build_env:
     """Equirectangular HDR environment map of one named environment."""
     input:
-        code=library("envmaps", "sh", "render", "mitsuba_setup"),
+        code=library("make_env"),
     output:
         exr="results/envs/{env}.exr",
         preview="results/envs/{env}.png",
@@ -26,7 +26,7 @@ rule env_spectrum:
     """Spherical-harmonics power spectrum of one environment: how much high-frequency light it has."""
     input:
         exr="results/envs/{env}.exr",
-        code=library("envmaps", "sh", "plots"),
+        code=library("env_spectrum"),
     output:
         tsv="results/envs/{env}_spectrum.tsv",
         png=report("results/envs/{env}_spectrum.png", category="Environments", caption="../report/env_spectrum.rst"),
@@ -43,7 +43,8 @@ rule env_spectrum:
 rule env_spectra:
     """All environments' spectra on one plot."""
     input:
-        expand("results/envs/{env}_spectrum.tsv", env=ENVS),
+        spectra=expand("results/envs/{env}_spectrum.tsv", env=ENVS),
+        code=library("env_spectra"),
     output:
         report("results/envs/spectra.png", category="Environments", caption="../report/env_spectra.rst"),
     params:

@@ -4,17 +4,17 @@ ruleorder: spectrum_search > optimise_svbrdf
 
 rule optimise_svbrdf:
     """Per-texel SVBRDF by Adam through the frequency-domain forward model
-    (freq: shadowing and masking; freq_paper: the light pre-filtered as in the paper; freq_noshadow, freq_nomask: ablations;
-    rh2001: neither, Ramamoorthi-Hanrahan)."""
+    (freq: shadowing and masking; freq_paper: the same on the light pre-filtered
+    as in the paper; freq_noshadow, freq_nomask: ablations; rh2001: neither,
+    Ramamoorthi-Hanrahan)."""
     input:
         observations="results/observations/{object}/{env}/{poses}",
         envmap=envmap_file,
         init="results/estimates/{object}/{env}/{poses}/spectrum",
-        code=library("optimise", "light", "observations", "cameras", "meshes", "spectral", "sh", "envmaps", "textures", "plots"),
+        code=library("optimise_svbrdf"),
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
     params:
-        sh=config["sh"],
         optimise=config["optimise"],
     threads: 2
     resources:

@@ -30,7 +30,7 @@ rule metrics:
         relit=[f"results/relight/{o}/{e}/{p}/{m}/{r}" for o, e, p, m, r in RELIGHTS],
         references=sorted({f"results/captures/{o}/{r}/test" for o, _, _, _, r in RELIGHTS}),
         benchmarks=sorted({f for o, e in CAPTURES for m in METHODS for f in method_benchmarks(o, e, POSES, m)}),
-        code=library("metrics", "spectral"),
+        code=library("metrics"),
     output:
         "results/tables/metrics.csv",
     params:

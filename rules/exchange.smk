@@ -6,7 +6,7 @@ rule export_capture:
         test="results/captures/{object}/{env}/test",
         mesh="results/objects/{object}/mesh.ply",
         envmap="results/envs/{env}.exr",
-        code=library("capture_io", "cameras"),
+        code=library("export_capture"),
     output:
         directory("results/exports/{object}/{env}"),
     log:
@@ -22,7 +22,7 @@ rule import_capture:
     `real_captures`), converted to the native layout the estimators read."""
     input:
         source=lambda wildcards: REAL_CAPTURES[wildcards.object]["dir"],
-        code=library("capture_io", "cameras"),
+        code=library("import_capture"),
     output:
         train=directory("results/imports/{object}/train"),
         test=directory("results/imports/{object}/test"),

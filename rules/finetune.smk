@@ -32,7 +32,7 @@ rule mitsuba_svbrdf:
         poses=pose_dir,
         mesh=mesh_file,
         envmap=envmap_file,
-        code=library("inverse", "render", "cameras", "sh", "mitsuba_setup", "plots"),
+        code=library("mitsuba_svbrdf"),
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
     wildcard_constraints:

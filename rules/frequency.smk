@@ -3,7 +3,7 @@ rule fit_sh:
     of every texel, and their power spectra (cached for every later stage)."""
     input:
         observations="results/observations/{object}/{env}/{poses}",
-        code=library("spectral", "sh"),
+        code=library("fit_sh"),
     output:
         directory("results/sh/{object}/{env}/{poses}"),
     params:
@@ -28,7 +28,7 @@ rule spectrum_search:
         sh="results/sh/{object}/{env}/{poses}",
         observations="results/observations/{object}/{env}/{poses}",
         envmap=envmap_file,
-        code=library("spectral", "light", "observations", "cameras", "meshes", "envmaps", "sh", "textures", "plots"),
+        code=library("spectrum_search"),
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/spectrum"),
         entropy=directory("results/entropy/{object}/{env}/{poses}"),

@@ -1,7 +1,7 @@
 rule build_object:
     """Procedural mesh with a UV atlas and its seeded ground-truth SVBRDF."""
     input:
-        code=library("meshes", "textures", "plots"),
+        code=library("make_object"),
     output:
         **object_files("{object}"),
         base_color_png="results/objects/{object}/base_color.png",

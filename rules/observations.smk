@@ -6,7 +6,7 @@ rule extract_observations:
         poses=pose_dir,
         mesh=mesh_file,
         envmap=envmap_file,
-        code=library("observations", "cameras", "meshes", "sh", "raycast", "mitsuba_setup", "plots"),
+        code=library("extract_observations"),
     output:
         directory("results/observations/{object}/{env}/{poses}"),
     params:

@@ -5,7 +5,7 @@ rule colmap_poses:
     to change, if too few views register or the poses are off."""
     input:
         capture=lambda wildcards: capture_dir(wildcards, "train"),
-        code=library("sfm", "cameras"),
+        code=library("colmap_poses"),
     output:
         directory("results/poses/{object}/{env}/colmap"),
     params:
@@ -29,7 +29,7 @@ rule pose_errors:
     """Registered views and median pose errors of SfM on every synthetic capture, one row each."""
     input:
         poses=[f"results/poses/{o}/{e}/colmap" for o, e in SYNTHETIC_CAPTURES],
-        code=library(),
+        code=library("pose_errors"),
     output:
         "results/tables/pose_errors.tsv",
     params:

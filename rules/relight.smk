@@ -12,7 +12,7 @@ rule relight:
         mesh="results/objects/{object}/mesh.ply",
         envmap="results/envs/{relight_env}.exr",
         test="results/captures/{object}/{relight_env}/test",  # cameras; the reference images
-        code=library("render", "cameras", "mitsuba_setup", "plots"),
+        code=library("relight"),
     output:
         directory("results/relight/{object}/{env}/{poses}/{method}/{relight_env}"),
     params:

@@ -27,7 +27,7 @@ rule tables:
     claims table, as Markdown, LaTeX and HTML (the HTML pages are in the report)."""
     input:
         metrics="results/tables/metrics.csv",
-        code=library("tables"),
+        code=library("report_tables"),
     output:
         **{f"{t}_{ext}": f"results/tables/{t}.{ext}" for t in TABLES for ext in ("md", "tex")},
         all_md="results/tables/tables.md",
@@ -57,7 +57,7 @@ rule capture_figure:
             [f"results/objects/{w.object}/{n}.exr" for n in ("base_color", "roughness", "metallic")],
         observations="results/observations/{object}/{env}/{poses}",
         entropy="results/entropy/{object}/{env}/{poses}",
-        code=library("figures", "plots", "metrics", "spectral"),
+        code=library("report_figures"),
     output:
         report("results/figures/{object}/{env}/{poses}/maps.png", category="Captures",
                subcategory="{object} / {env}", caption="../report/capture_maps.rst",
@@ -79,7 +79,7 @@ rule relight_figure:
         relit=lambda w: [f"results/relight/{w.object}/{w.env}/{w.poses}/{m}/{r}" for m, r in capture_relights(w)],
         references=lambda w: sorted({f"results/captures/{w.object}/{r}/test" for _, r in capture_relights(w)}),
         metrics="results/tables/metrics.csv",
-        code=library("figures", "plots", "metrics"),
+        code=library("report_figures"),
     output:
         report("results/figures/{object}/{env}/{poses}/relight.png", category="Captures",
                subcategory="{object} / {env}", caption="../report/capture_relight.rst",

@@ -9,7 +9,7 @@ from freqbrdf.plots import spectra_comparison_figure
 def main(smk, log):
     spectra = {
         env: pd.read_csv(path, sep="\t")[["power_r", "power_g", "power_b", "power_luminance"]].to_numpy()
-        for env, path in zip(smk.params.envs, smk.input)
+        for env, path in zip(smk.params.envs, smk.input.spectra, strict=True)
     }
     spectra_comparison_figure(smk.output[0], spectra)
 

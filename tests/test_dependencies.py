@@ -1,0 +1,65 @@
+"""Tests for freqbrdf.dependencies: the library files each rule declares are the ones its script runs."""
+
+from __future__ import annotations
+
+import modulefinder
+import re
+from pathlib import Path
+
+import pytest
+
+from freqbrdf.dependencies import script_modules
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGE = REPO / "workflow" / "freqbrdf"
+SCRIPTS = sorted((REPO / "workflow" / "scripts").glob("*.py"))
+
+
+def imported_by_modulefinder(script: Path) -> list[str]:
+    """Independent oracle: the freqbrdf modules Python's bytecode-level ModuleFinder reaches."""
+    finder = modulefinder.ModuleFinder(path=[str(REPO / "workflow")])  # nothing else is findable: fast
+    finder.run_script(str(script))
+    names = {name.split(".", 1)[1] if "." in name else "__init__" for name in finder.modules if name.split(".")[0] == "freqbrdf"}
+    return sorted(names)
+
+
+@pytest.mark.parametrize("script", SCRIPTS, ids=lambda p: p.stem)
+def test_script_modules_match_what_python_imports(script: Path) -> None:
+    assert script_modules(script, PACKAGE) == imported_by_modulefinder(script)
+
+
+def rule_blocks() -> dict[str, str]:
+    blocks = {}
+    for smk in sorted((REPO / "rules").glob("*.smk")):
+        for block in re.split(r"\n(?=rule )", smk.read_text()):
+            if block.startswith("rule "):
+                blocks[block.split(":")[0].removeprefix("rule ").strip()] = block
+    return blocks
+
+
+def test_every_rule_declares_the_modules_of_its_own_script() -> None:
+    """A rule that runs a script lists ``code=library("<that script>")``: with the derivation
+    above, its inputs are then exactly the modules the script imports, transitively."""
+    blocks = rule_blocks()
+    assert len(blocks) > 15
+    for name, block in blocks.items():
+        script = re.search(r'script:\s*"\.\./workflow/scripts/(\w+)\.py"', block)
+        if script is None:
+            continue
+        declared = re.findall(r'code=library\("(\w+)"\)', block)
+        assert declared == [script.group(1)], f"rule {name}: code inputs {declared}, script {script.group(1)}"
+
+
+def test_transitive_imports_are_followed() -> None:
+    """scripts/metrics.py imports freqbrdf.cameras directly and freqbrdf.sh through spectral
+    (the hand-kept list had neither); optimise_svbrdf reaches observations through light."""
+    metrics = script_modules(REPO / "workflow/scripts/metrics.py", PACKAGE)
+    assert {"cameras", "sh", "envmaps", "spectral", "metrics", "__init__"} <= set(metrics)
+    assert {"observations", "light", "optimise"} <= set(script_modules(REPO / "workflow/scripts/optimise_svbrdf.py", PACKAGE))
+
+
+def test_a_missing_module_is_named(tmp_path: Path) -> None:
+    script = tmp_path / "rule.py"
+    script.write_text("from freqbrdf.nonexistent import thing\n")
+    with pytest.raises(FileNotFoundError, match="imports freqbrdf.nonexistent"):
+        script_modules(script, PACKAGE)
