@@ -7,17 +7,18 @@ metallic m, all in [0, 1]; ``alpha = max(r^2, 1e-3)`` as in Mitsuba's
     B(p, w_o) = (1 - m) base E(p) / pi + F(theta_o) G1m(theta_o) Spec(p, w_r)
 
 - ``E(p)``: irradiance at the texel normal from the whole environment
-  (an input, e.g. :func:`freqbrdf.spectral.irradiance_at_normals`);
+  (an input, e.g. :func:`freqbrdf.light.irradiance`);
 - ``F = R0 + (1 - R0)(1 - cos theta_o)^5``, ``R0 = 0.04 (1 - m) + m base``;
 - ``G1(theta) = 2 / (1 + sqrt(1 + alpha^2 tan^2 theta))`` (GGX Smith); the
   masking term ``G1m = G1(theta_o)``;
-- ``Spec = sum_lm exp(-(alpha l)^2) Lg_lm Y_lm(w_r)``: the specular lobe as
-  an SH filter at the mirror direction ``w_r``, where ``Lg`` is the per-texel
-  SH fit (:func:`freqbrdf.spectral.fit_sh`, same samples, directions and
-  weights as the frequency stage) of the shadowed light ``G1(theta_i) L``;
-  at the mirror direction ``theta_i = theta_o``.
+- ``Spec = sum_{l <= l*} exp(-(alpha l)^2) sum_m Lg_lm Y_lm(w_r)``: the
+  specular lobe as an SH filter at the world mirror direction ``w_r``, where
+  ``Lg`` is the shadowed light ``G1(theta_i) L`` over the texel's upper
+  hemisphere, integrated from the known environment map per texel normal
+  and roughness (:func:`freqbrdf.light.shadowed_light`; paper section 4.2).
 
 ``Lg`` depends on alpha, so it is refitted every ``refit_every`` iterations
+(for the texels whose roughness moved by more than ``refit_tolerance``)
 and held constant in between (no gradient through the refit, as in the
 authors' code). After a refit, `light_terms` stores the per-degree
 contributions ``P[n, l, c] = sum_m Lg_lm,c Y_lm(w_r,n)`` of every observation
@@ -61,9 +62,11 @@ texel) so that per-texel values broadcast and per-texel sums are sums over
 one axis; the chunks run on ``workers`` threads, write disjoint slices and
 are summed in a fixed order, so results do not depend on the number of
 threads. On the default sphere/studio capture (256^2 texels x 24 views,
-0.45 M observed pairs, 2 cores) 150 iterations of ``freq`` take about 7 s,
-of which about 4 s are the three refits (`light_terms`, mostly
-:func:`freqbrdf.spectral.fit_sh`); see ``bench/optimise_bench.py``.
+0.45 M observed pairs, 2 idle cores, l* = 20) ``freq`` takes about 27 s:
+11 s in four shadowed-light fits (the grid start's, the first step's and
+two partial refits), 5.6 s in the 150 Adam steps, 4.9 s evaluating the
+light at the mirror directions and 3.5 s building their `mirror_basis`;
+see ``bench/optimise_bench.py``.
 """
 
 from __future__ import annotations
@@ -75,7 +78,7 @@ from typing import Callable, Mapping, NamedTuple
 import numpy as np
 from scipy import sparse
 
-from .light import LightQuadrature, shadowed_light, smith_g1
+from .light import LightQuadrature, shadowed_light
 from .sh import real_sh
 from .spectral import R0_DIELECTRIC, _check_int, mirror_directions
 
@@ -88,7 +91,6 @@ __all__ = [
     "Problem",
     "alpha_from_roughness",
     "identifiable_roughness",
-    "smith_g1",
     "schlick_fresnel",
     "atlas_neighbours",
     "build_problem",
@@ -178,11 +180,9 @@ class OptimiseSettings:
     tv_weight : float
         Weight of the total variation of the parameter textures, ``>= 0``.
     min_roughness : float
-        Lower bound of the fitted roughness, in [0, 1). Below the band limit
-        of the views the lobe filter barely changes the model, so roughness
-        there is not identifiable and drifts to 0: mirror texels, which are
-        harmless for the fit but reflect a sun or a small lamp at full
-        strength when the textures are relit (README "Metrics").
+        Lower bound of the fitted roughness, in [0, 1), e.g.
+        `identifiable_roughness` of the light's degree: below it the model
+        does not resolve the lobe (README "Identifiable roughness").
     workers : int
         Threads (chunks of texels run concurrently; results are identical
         for any number).
@@ -685,9 +685,9 @@ def _run(pool: Executor | None, fn: Callable[[int], object], n: int) -> list:
 def mirror_basis(problem: Problem, lmax: int, max_bytes: float = 2**30) -> np.ndarray | None:
     """``Y_lm`` at every observation's mirror direction, float32, or None when it would not fit.
 
-    The refits of `optimise` evaluate the light at the same directions
-    several times; at 256^2 texels x 24 views and l* = 20 the table takes
-    0.75 GB and saves about 3 s per evaluation.
+    `optimise` evaluates the light at the same directions four times; at
+    256^2 texels x 24 views and l* = 20 the table takes 0.8 GB and 3.5 s
+    to build, once instead of at every evaluation.
 
     Parameters
     ----------
@@ -1120,8 +1120,9 @@ def grid_start(
     ``R0 = 0.04 (1 - m) + m base``), so each grid point gets its base colour
     in closed form (least squares per channel, clipped to [0, 1]) and is
     ranked by the L1 objective. A descent from a constant start stalls in
-    local minima on some texels (4 of 40 in a noise-free test, roughness off
-    by up to 0.88); from the grid's best point it does not.
+    local minima on some texels (4 of 40 noise-free texels with random
+    metallic, roughness off by up to 0.88); from the grid's best point 2 of
+    them (up to 0.42), and none of the 64 of `tests/test_light.py`.
 
     Parameters
     ----------
@@ -1257,7 +1258,6 @@ def optimise(
     problem = build_problem(
         radiance, weight, wo_local, frame, irradiance, texel, resolution, settings.dtype, settings.chunk_pairs
     )
-    pool = ThreadPoolExecutor(max_workers=settings.workers) if settings.workers > 1 else None
     basis = mirror_basis(problem, light.lmax)
     if init is not None:
         x = pack_params(init, problem.n_texels)
@@ -1280,6 +1280,7 @@ def optimise(
     padded: list[np.ndarray] = []
     flat = np.empty(0)
     fitted = np.full(problem.n_observed, np.nan)  # roughness each texel's shadowed light was fitted at
+    pool = ThreadPoolExecutor(max_workers=settings.workers) if settings.workers > 1 else None
     try:
         for it in range(settings.iterations):
             # without shadowing the fitted light does not depend on alpha: one fit is exact
