@@ -4,6 +4,7 @@ from pathlib import Path
 
 from freqbrdf.config import derived_seed
 from freqbrdf.dependencies import script_modules
+from freqbrdf.methods import METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
 
 SYNTHETIC_OBJECTS = list(config["objects"])
 REAL_CAPTURES = config["real_captures"]  # name -> {dir, env}: captures imported from disk
@@ -12,10 +13,7 @@ ENVS = list(config["envs"])
 CAPTURE_ENVS = list(config["capture_envs"])
 SPLITS = ["train", "test"]
 POSES = config["poses"]["source"]
-METHODS = list(config["methods"])
-# Methods estimated by differentiable rendering (rules/finetune.smk) rather
-# than by the frequency-domain optimiser (rules/estimate.smk).
-MITSUBA_METHODS = r"mitsuba|freq\+mitsuba"
+METHODS = list(config["methods"])  # names in freqbrdf.methods.METHODS (checked by check_config)
 # Every (object, env) pair that has a training capture; synthetic ones have ground truth.
 SYNTHETIC_CAPTURES = [(o, e) for o in SYNTHETIC_OBJECTS for e in CAPTURE_ENVS]
 CAPTURES = SYNTHETIC_CAPTURES + [
@@ -40,7 +38,7 @@ wildcard_constraints:
     env="|".join(ENVS + [capture["env"] for capture in REAL_CAPTURES.values()]),
     split="|".join(SPLITS),
     poses="gt|colmap",
-    method="spectrum|freq|freq_paper|freq_noshadow|freq_nomask|rh2001|" + MITSUBA_METHODS,
+    method=wildcard_pattern(list(METHOD_REGISTRY)),
     relight_env="|".join(ENVS),
 
 

@@ -1,19 +1,24 @@
-# The spectrum-only estimate comes from spectrum_search; every other method from the optimiser.
-ruleorder: spectrum_search > optimise_svbrdf
+def optimise_start(wildcards):
+    """The spectrum-only estimate when the optimiser starts from it (optimise.init: spectrum)."""
+    if config["optimise"]["init"] == "spectrum":
+        return {"init": f"results/estimates/{wildcards.object}/{wildcards.env}/{wildcards.poses}/spectrum"}
+    return {}
 
 
 rule optimise_svbrdf:
-    """Per-texel SVBRDF by Adam through the frequency-domain forward model
-    (freq: shadowing and masking; freq_paper: the same on the light pre-filtered
-    as in the paper; freq_noshadow, freq_nomask: ablations; rh2001: neither,
-    Ramamoorthi-Hanrahan)."""
+    """Per-texel SVBRDF by Adam through the frequency-domain forward model; which
+    terms the model includes is the method's entry in freqbrdf.methods.METHODS
+    (freq: shadowing and masking; freq_paper: the light pre-filtered as in the
+    paper; freq_noshadow, freq_nomask, rh2001: the Table 4 ablation)."""
     input:
+        unpack(optimise_start),
         observations="results/observations/{object}/{env}/{poses}",
         envmap=envmap_file,
-        init="results/estimates/{object}/{env}/{poses}/spectrum",
         code=library("optimise_svbrdf"),
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
+    wildcard_constraints:
+        method=wildcard_pattern(methods_of("optimise_svbrdf")),
     params:
         optimise=config["optimise"],
     threads: 2

@@ -1,22 +1,21 @@
 # Settings that only change how results/tables/metrics.csv scores the outputs.
 # Only the metrics rule receives them, so editing one reruns nothing upstream.
 METRIC_KEYS = ["mask_min_coverage", "hdr_clip", "hdr_normalise"]
-# Methods whose per-texel error is correlated with the entropy map.
-ENTROPY_METHODS = ["freq", "mitsuba"]
 
 
 def method_benchmarks(o, e, p, m):
     """Benchmark files of the jobs a method needs once the observations exist, its own rule last."""
     bench = "results/benchmarks"
-    spectrum = [f"{bench}/fit_sh/{o}_{e}_{p}.tsv", f"{bench}/spectrum_search/{o}_{e}_{p}.tsv"]
-    if m == "spectrum":
-        return spectrum
-    if m == "mitsuba":
-        return [f"{bench}/mitsuba_svbrdf/{o}_{e}_{p}_{m}.tsv"]
-    if m == "freq+mitsuba":  # fine-tunes the freq estimate
-        return method_benchmarks(o, e, p, "freq") + [f"{bench}/mitsuba_svbrdf/{o}_{e}_{p}_{m}.tsv"]
-    own = [f"{bench}/optimise_svbrdf/{o}_{e}_{p}_{m}.tsv"]
-    return (spectrum if config["optimise"]["init"] == "spectrum" else []) + own
+    method = METHOD_REGISTRY[m]
+    if method.rule == "spectrum_search":
+        return [f"{bench}/fit_sh/{o}_{e}_{p}.tsv", f"{bench}/spectrum_search/{o}_{e}_{p}.tsv"]
+    if method.start is not None:
+        before = method_benchmarks(o, e, p, method.start)
+    elif method.rule == "optimise_svbrdf" and config["optimise"]["init"] == "spectrum":
+        before = method_benchmarks(o, e, p, "spectrum")
+    else:
+        before = []
+    return before + [f"{bench}/{method.rule}/{o}_{e}_{p}_{m}.tsv"]
 
 
 rule metrics:
@@ -36,7 +35,7 @@ rule metrics:
     params:
         metrics={key: config["evaluate"][key] for key in METRIC_KEYS},
         synthetic=[(o, e, POSES, m) for o, e in SYNTHETIC_CAPTURES for m in METHODS],
-        entropy_methods=[m for m in ENTROPY_METHODS if m in METHODS],
+        entropy_methods=[m for m in METHODS if METHOD_REGISTRY[m].entropy_scored],
         relights=RELIGHTS,
         timings=[(o, e, POSES, m, method_benchmarks(o, e, POSES, m)) for o, e in CAPTURES for m in METHODS],
     threads: 1

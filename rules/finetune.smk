@@ -1,21 +1,21 @@
-# Differentiable-rendering baseline (mitsuba) and fine-tuning of the freq
-# estimate (freq+mitsuba) with Mitsuba 3. Both write the same estimate layout
-# as optimise_svbrdf, which would otherwise also match these method names.
-ruleorder: mitsuba_svbrdf > optimise_svbrdf
+# Differentiable-rendering baseline (mitsuba) and fine-tuning of another
+# method's estimate (freq+mitsuba) with Mitsuba 3.
 
 
 def mitsuba_start(wildcards):
-    """freq+mitsuba starts from the freq estimate; the baseline from a constant 0.5 (no input)."""
-    if wildcards.method == "freq+mitsuba":
-        return {"init": f"results/estimates/{wildcards.object}/{wildcards.env}/{wildcards.poses}/freq"}
+    """The estimate a fine-tuning method starts from (its registry entry's start);
+    the baseline starts from a constant 0.5 (no input)."""
+    start = METHOD_REGISTRY[wildcards.method].start
+    if start is not None:
+        return {"init": f"results/estimates/{wildcards.object}/{wildcards.env}/{wildcards.poses}/{start}"}
     return {}
 
 
 def mitsuba_settings(wildcards):
     """Optimiser settings of one run: config `mitsuba`, with `mitsuba.finetune`
-    overriding epochs and spp for freq+mitsuba; a seed per capture and method."""
+    overriding epochs and spp when fine-tuning; a seed per capture and method."""
     settings = {key: value for key, value in config["mitsuba"].items() if key != "finetune"}
-    if wildcards.method == "freq+mitsuba":
+    if METHOD_REGISTRY[wildcards.method].start is not None:
         settings.update(config["mitsuba"]["finetune"])
     settings["seed"] = derived_seed(config["seed"], "mitsuba", wildcards.object, wildcards.env,
                                     wildcards.poses, wildcards.method)
@@ -36,7 +36,7 @@ rule mitsuba_svbrdf:
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
     wildcard_constraints:
-        method=MITSUBA_METHODS,
+        method=wildcard_pattern(methods_of("mitsuba_svbrdf")),
     params:
         resolution=config["textures"]["resolution"],
         settings=mitsuba_settings,

@@ -37,6 +37,7 @@ def test_shipped_configs_validate(repo, schema, default, preset):
         (lambda c: c["envs"]["studio"].update(lamps=3), r"config key envs\.studio: .*'lamps' was unexpected"),
         (lambda c: c["envs"]["sunny"].update(kind="sunset"), r"config key envs\.sunny\.kind: 'sunset' is not one of"),
         (lambda c: c.update(objects=["teapot"]), r"config key objects\.0: 'teapot' is not one of"),
+        (lambda c: c.update(methods=["freq", "nerf"]), r"config key methods: \[.nerf.\] are not registered methods"),
         (lambda c: c.update(capture_envs=["beach"]), r"config key capture_envs: \['beach'\] not defined under envs"),
         (lambda c: c["evaluate"].update(relight_envs=["beach"]), r"config key evaluate\.relight_envs: \['beach'\] not defined"),
         (lambda c: c["evaluate"].update(relight_envs="others"), r"config key evaluate\.relight_envs: 'others' is not valid"),

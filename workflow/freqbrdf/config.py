@@ -60,6 +60,11 @@ def check_config(config: dict[str, Any], schema: str | Path) -> None:
         raise ConfigError(
             f"config key evaluate.relight_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
         )
+    from .methods import METHODS
+
+    unknown = [m for m in config["methods"] if m not in METHODS]
+    if unknown:
+        raise ConfigError(f"config key methods: {unknown} are not registered methods (freqbrdf.methods: {list(METHODS)})")
     from .meshes import OBJECTS as CATALOGUE
 
     from .sfm import CONFIG_PREFIX, SfmOptions

@@ -25,7 +25,8 @@ contributions ``P[n, l, c] = sum_m Lg_lm,c Y_lm(w_r,n)`` of every observation
 n, so ``Spec = sum_l exp(-(alpha l)^2) P[n, l]`` is cheap to evaluate and to
 differentiate with respect to alpha.
 
-Variants (`METHODS`): ``freq`` (shadowing and masking), ``freq_paper``
+Methods (the ``optimise_svbrdf`` entries of :data:`freqbrdf.methods.METHODS`):
+``freq`` (shadowing and masking), ``freq_paper``
 (the same on the light pre-filtered by the views' band limit a', as the
 paper does: the fitted lobe then has width ``sqrt(alpha^2 + a'^2)``),
 ``freq_noshadow`` (``G1(theta_i) = 1``: the environment's own SH),
@@ -73,17 +74,17 @@ from __future__ import annotations
 
 from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Callable, Mapping, NamedTuple
+from typing import Callable, Mapping
 
 import numpy as np
 from scipy import sparse
 
 from .light import LightQuadrature, shadowed_light
+from .methods import get_method
 from .sh import real_sh
 from .spectral import R0_DIELECTRIC, _check_int, mirror_directions
 
 __all__ = [
-    "METHODS",
     "PARAM_NAMES",
     "PARAM_COLUMNS",
     "ALPHA_MIN",
@@ -105,21 +106,6 @@ __all__ = [
     "optimise",
 ]
 
-class Variant(NamedTuple):
-    """What a method's forward model includes."""
-
-    shadowing: bool  # G1(theta_i) on the light (and the texel's horizon)
-    masking: bool  # G1(theta_o) on the specular term
-    prefiltered: bool  # the light low-passed by the views' band limit a' (paper section 4.2) under the lobe
-
-
-METHODS: dict[str, Variant] = {
-    "freq": Variant(True, True, False),
-    "freq_paper": Variant(True, True, True),
-    "freq_noshadow": Variant(False, True, False),
-    "freq_nomask": Variant(True, False, False),
-    "rh2001": Variant(False, False, False),
-}
 PARAM_NAMES = ("base_color", "roughness", "metallic")
 PARAM_COLUMNS = ("base_r", "base_g", "base_b", "roughness", "metallic")  # columns of a packed (T, 5) array
 ALPHA_MIN = 1e-3  # Mitsuba's principled BSDF clamps alpha here
@@ -146,9 +132,8 @@ def _check_finite(a: np.ndarray, name: str) -> None:
 
 def _check_method(method: str) -> tuple[bool, bool]:
     """(shadowing, masking) of a method; its light's pre-filter is the caller's (`light_quadrature`)."""
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {tuple(METHODS)}, got {method!r}")
-    return METHODS[method].shadowing, METHODS[method].masking
+    entry = get_method(method, "optimise_svbrdf")
+    return entry.shadowing, entry.masking
 
 
 @dataclass(frozen=True)
@@ -1239,7 +1224,7 @@ def optimise(
         ``base_color`` (T, 3), ``roughness`` (T,), ``metallic`` (T,) in [0, 1],
         e.g. the spectrum-only estimate; default 0.5 everywhere.
     method : str
-        A key of `METHODS`.
+        A method of rule ``optimise_svbrdf`` in :data:`freqbrdf.methods.METHODS`.
     settings : OptimiseSettings
         Optimiser and SH fit settings.
 

@@ -1,5 +1,5 @@
 """Rule optimise_svbrdf: per-texel base colour, roughness and metallic by gradient descent
-through the frequency-domain forward model (methods: freqbrdf.optimise.METHODS)."""
+through the frequency-domain forward model (its methods: freqbrdf.methods.methods_of("optimise_svbrdf"))."""
 
 import time
 from pathlib import Path
@@ -10,7 +10,8 @@ import pandas as pd
 from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_json, read_svbrdf_dir, write_exr
 from freqbrdf.light import irradiance, light_quadrature
 from freqbrdf.logs import run_script
-from freqbrdf.optimise import METHODS, OptimiseSettings, identifiable_roughness, optimise
+from freqbrdf.methods import get_method
+from freqbrdf.optimise import OptimiseSettings, identifiable_roughness, optimise
 from freqbrdf.plots import loss_figure, texture_preview
 from freqbrdf.spectral import observed_texels
 from freqbrdf.textures import scatter_to_atlas
@@ -36,7 +37,7 @@ def main(smk, log):
                                 grid_start=opt["init"] == "grid", workers=smk.threads)
     start = time.perf_counter()
     # freq_paper: the light low-passed by the views' band limit a' (paper section 4.2)
-    prefilter = read_json(obs / "views.json")["band_limit"]["a_prime"] if METHODS[smk.wildcards.method].prefiltered else 0.0
+    prefilter = read_json(obs / "views.json")["band_limit"]["a_prime"] if get_method(smk.wildcards.method).prefiltered else 0.0
     light = light_quadrature(envmap, opt["lmax"], prefilter=prefilter)
     e = irradiance(envmap, texels["normal"])
     log.info("light at degree %d (pre-filter a' = %.3f) from %d quadrature nodes, irradiance at %d normals in %.1f s",
