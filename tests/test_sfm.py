@@ -3,6 +3,7 @@
 import dataclasses
 import json
 import logging
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -162,6 +163,123 @@ def test_colmap_defaults_are_pycolmaps_own():
     tuned = sfm.SfmOptions()
     assert tuned.peak_threshold < default.peak_threshold
     assert tuned.init_min_num_inliers < default.init_min_num_inliers
+
+
+# Where each option COLMAP takes unchanged must land ("{pycolmap class}.{attribute path}"),
+# written out here independently of sfm._COLMAP_ATTRIBUTES, with a value other
+# than the tuned default (numbers all distinct, so a swap shows; dyadic, so a
+# float32 attribute would hold them exactly).
+MAPPED = {
+    "max_num_features": (5000, "FeatureExtractionOptions.sift.max_num_features"),
+    "first_octave": (1, "FeatureExtractionOptions.sift.first_octave"),
+    "num_octaves": (5, "FeatureExtractionOptions.sift.num_octaves"),
+    "octave_resolution": (6, "FeatureExtractionOptions.sift.octave_resolution"),
+    "peak_threshold": (0.0078125, "FeatureExtractionOptions.sift.peak_threshold"),
+    "edge_threshold": (12.5, "FeatureExtractionOptions.sift.edge_threshold"),
+    "estimate_affine_shape": (False, "FeatureExtractionOptions.sift.estimate_affine_shape"),
+    "domain_size_pooling": (True, "FeatureExtractionOptions.sift.domain_size_pooling"),
+    "max_ratio": (0.625, "FeatureMatchingOptions.sift.max_ratio"),
+    "max_distance": (0.375, "FeatureMatchingOptions.sift.max_distance"),
+    "cross_check": (False, "FeatureMatchingOptions.sift.cross_check"),
+    "guided_matching": (True, "FeatureMatchingOptions.guided_matching"),
+    "two_view_min_num_inliers": (21, "TwoViewGeometryOptions.min_num_inliers"),
+    "two_view_max_error": (2.25, "TwoViewGeometryOptions.ransac.max_error"),
+    "two_view_max_num_trials": (3000, "TwoViewGeometryOptions.ransac.max_num_trials"),
+    "min_num_matches": (17, "IncrementalPipelineOptions.min_num_matches"),
+    "init_min_num_inliers": (40, "IncrementalPipelineOptions.mapper.init_min_num_inliers"),
+    "init_min_tri_angle": (9.5, "IncrementalPipelineOptions.mapper.init_min_tri_angle"),
+    "abs_pose_min_num_inliers": (13, "IncrementalPipelineOptions.mapper.abs_pose_min_num_inliers"),
+    "abs_pose_min_inlier_ratio": (0.4375, "IncrementalPipelineOptions.mapper.abs_pose_min_inlier_ratio"),
+    "abs_pose_max_error": (6.75, "IncrementalPipelineOptions.mapper.abs_pose_max_error"),
+    "filter_max_reproj_error": (3.5, "IncrementalPipelineOptions.mapper.filter_max_reproj_error"),
+    "max_reg_trials": (7, "IncrementalPipelineOptions.mapper.max_reg_trials"),
+    "multiple_models": (False, "IncrementalPipelineOptions.multiple_models"),
+}
+
+
+def colmap_settings(options: sfm.SfmOptions) -> dict:
+    """Every attribute of the pycolmap option objects built from ``options``, "{class}.{path}" -> value."""
+    matching, verification = sfm._matching_options(options)
+    objects = [sfm._extraction_options(options), matching, verification, sfm._mapping_options(options, Path("images"))]
+    settings = {}
+
+    def walk(prefix: str, values: dict) -> None:
+        for key, value in values.items():
+            if isinstance(value, dict):
+                walk(f"{prefix}.{key}", value)
+            else:
+                settings[f"{prefix}.{key}"] = value
+
+    for obj in objects:
+        walk(type(obj).__name__, obj.todict())
+    return settings
+
+
+def changed_settings(options: sfm.SfmOptions) -> dict:
+    """The pycolmap settings of ``options`` that differ from those of the tuned defaults."""
+    before, after = colmap_settings(sfm.SfmOptions()), colmap_settings(options)
+    assert before.keys() == after.keys()
+    return {key: value for key, value in after.items() if value != before[key]}
+
+
+def pycolmap_default(path: str):
+    """COLMAP's default of "{class}.{attribute path}"."""
+    import pycolmap
+
+    owner, *steps = path.split(".")
+    value = getattr(pycolmap, owner)()
+    for step in steps:
+        value = getattr(value, step)
+    return value
+
+
+def test_every_option_field_reaches_colmap_or_is_set_explicitly():
+    names = [f.name for f in dataclasses.fields(sfm.SfmOptions)]
+    mapped, explicit = set(sfm._COLMAP_ATTRIBUTES), set(sfm._SET_EXPLICITLY)
+    assert mapped.isdisjoint(explicit) and sorted(mapped | explicit) == sorted(names)
+    assert set(MAPPED) == mapped  # this file's own list covers every mapped field
+    numbers = [value for value, _ in MAPPED.values() if not isinstance(value, bool)]
+    assert len(set(numbers)) == len(numbers)
+
+
+def test_non_default_options_land_on_their_pycolmap_attributes_and_nowhere_else():
+    options = sfm.SfmOptions(**{name: value for name, (value, _) in MAPPED.items()})
+    assert all(getattr(options, name) != getattr(sfm.SfmOptions(), name) for name in MAPPED)
+    assert changed_settings(options) == {path: value for value, path in MAPPED.values()}
+
+
+@pytest.mark.parametrize("name", sorted(MAPPED))
+def test_each_mapped_option_changes_only_its_own_pycolmap_attribute(name):
+    value, path = MAPPED[name]  # one at a time, so two booleans swapped in the table show too
+    assert changed_settings(sfm.SfmOptions(**{name: value})) == {path: value}
+
+
+def test_options_set_explicitly_reach_colmap():
+    options = sfm.SfmOptions(seed=7, num_threads=3, known_intrinsics=False, two_view_max_num_trials=40)
+    settings = colmap_settings(options)
+    for owner in ("FeatureExtractionOptions", "FeatureMatchingOptions", "IncrementalPipelineOptions"):
+        assert settings[f"{owner}.num_threads"] == 3
+    assert settings["TwoViewGeometryOptions.ransac.random_seed"] == settings["IncrementalPipelineOptions.random_seed"] == 7
+    assert settings["TwoViewGeometryOptions.ransac.min_num_trials"] == 40  # capped by max_num_trials
+    refine = [f"IncrementalPipelineOptions.ba_refine_{what}" for what in ("focal_length", "extra_params")]
+    assert all(settings[key] for key in refine)
+    fixed = colmap_settings(sfm.SfmOptions())
+    assert not any(fixed[key] for key in refine) and not fixed["IncrementalPipelineOptions.ba_refine_principal_point"]
+    floor = "TwoViewGeometryOptions.ransac.min_num_trials"
+    assert fixed[floor] == pycolmap_default(floor)  # the cap 2000 is above COLMAP's floor
+    assert not fixed["FeatureExtractionOptions.use_gpu"] and not fixed["FeatureMatchingOptions.use_gpu"]
+
+
+def test_a_pycolmap_attribute_that_is_missing_is_named_with_its_field(monkeypatch):
+    monkeypatch.setitem(sfm._COLMAP_ATTRIBUTES, "peak_threshold", "FeatureExtractionOptions.sift.peak_treshold")
+    named = r"poses\.colmap\.peak_threshold maps onto pycolmap\.FeatureExtractionOptions\.sift\.peak_treshold"
+    with pytest.raises(AttributeError, match=named):
+        sfm._extraction_options(sfm.SfmOptions())
+    monkeypatch.undo()
+    monkeypatch.setitem(sfm._COLMAP_ATTRIBUTES, "max_reg_trials", "IncrementalPipelineOptions.mappr.max_reg_trials")
+    named = r"poses\.colmap\.max_reg_trials .* no attribute 'mappr' on IncrementalPipelineOptions"
+    with pytest.raises(AttributeError, match=named):
+        sfm.SfmOptions.colmap_defaults()
 
 
 def write_random_capture(capture, n: int, size: int, seed: int = 1):

@@ -253,29 +253,54 @@ class SfmOptions:
         """
         import pycolmap
 
-        sift = pycolmap.SiftExtractionOptions()
-        matching = pycolmap.SiftMatchingOptions()
-        feature_matching = pycolmap.FeatureMatchingOptions()
-        two_view = pycolmap.TwoViewGeometryOptions()
-        pipeline = pycolmap.IncrementalPipelineOptions()
-        mapper = pycolmap.IncrementalMapperOptions()
+        defaults = {owner: _new_colmap_object(owner) for owner in {_owner(name) for name in _COLMAP_ATTRIBUTES}}
+        copied = {}
+        for name in _COLMAP_ATTRIBUTES:
+            holder, attribute = _attribute(defaults[_owner(name)], name)
+            copied[name] = getattr(holder, attribute)
         return cls(
-            max_num_features=sift.max_num_features, first_octave=sift.first_octave,
-            num_octaves=sift.num_octaves, octave_resolution=sift.octave_resolution,
-            peak_threshold=sift.peak_threshold, edge_threshold=sift.edge_threshold,
-            estimate_affine_shape=sift.estimate_affine_shape, domain_size_pooling=sift.domain_size_pooling,
-            max_ratio=matching.max_ratio, max_distance=matching.max_distance, cross_check=matching.cross_check,
-            guided_matching=feature_matching.guided_matching,
-            two_view_min_num_inliers=two_view.min_num_inliers, two_view_max_error=two_view.ransac.max_error,
-            two_view_max_num_trials=two_view.ransac.max_num_trials,
-            use_mask=False, mask_erosion_px=0, exposure=1.0, denoise_sigma=0.0,
+            **copied, use_mask=False, mask_erosion_px=0, exposure=1.0, denoise_sigma=0.0,
             known_intrinsics=known_intrinsics, camera_model=pycolmap.ImageReaderOptions().camera_model,
-            min_num_matches=pipeline.min_num_matches, init_min_num_inliers=mapper.init_min_num_inliers,
-            init_min_tri_angle=mapper.init_min_tri_angle, abs_pose_min_num_inliers=mapper.abs_pose_min_num_inliers,
-            abs_pose_min_inlier_ratio=mapper.abs_pose_min_inlier_ratio, abs_pose_max_error=mapper.abs_pose_max_error,
-            filter_max_reproj_error=mapper.filter_max_reproj_error, max_reg_trials=mapper.max_reg_trials,
-            multiple_models=pipeline.multiple_models, seed=seed, num_threads=num_threads,
+            seed=seed, num_threads=num_threads,
         )
+
+
+# Each SfmOptions field that COLMAP takes unchanged -> where it lands,
+# "{pycolmap option class}.{attribute path}"; _colmap_object copies them.
+_COLMAP_ATTRIBUTES: dict[str, str] = {
+    "max_num_features": "FeatureExtractionOptions.sift.max_num_features",
+    "first_octave": "FeatureExtractionOptions.sift.first_octave",
+    "num_octaves": "FeatureExtractionOptions.sift.num_octaves",
+    "octave_resolution": "FeatureExtractionOptions.sift.octave_resolution",
+    "peak_threshold": "FeatureExtractionOptions.sift.peak_threshold",
+    "edge_threshold": "FeatureExtractionOptions.sift.edge_threshold",
+    "estimate_affine_shape": "FeatureExtractionOptions.sift.estimate_affine_shape",
+    "domain_size_pooling": "FeatureExtractionOptions.sift.domain_size_pooling",
+    "max_ratio": "FeatureMatchingOptions.sift.max_ratio",
+    "max_distance": "FeatureMatchingOptions.sift.max_distance",
+    "cross_check": "FeatureMatchingOptions.sift.cross_check",
+    "guided_matching": "FeatureMatchingOptions.guided_matching",
+    "two_view_min_num_inliers": "TwoViewGeometryOptions.min_num_inliers",
+    "two_view_max_error": "TwoViewGeometryOptions.ransac.max_error",
+    "two_view_max_num_trials": "TwoViewGeometryOptions.ransac.max_num_trials",
+    "min_num_matches": "IncrementalPipelineOptions.min_num_matches",
+    "init_min_num_inliers": "IncrementalPipelineOptions.mapper.init_min_num_inliers",
+    "init_min_tri_angle": "IncrementalPipelineOptions.mapper.init_min_tri_angle",
+    "abs_pose_min_num_inliers": "IncrementalPipelineOptions.mapper.abs_pose_min_num_inliers",
+    "abs_pose_min_inlier_ratio": "IncrementalPipelineOptions.mapper.abs_pose_min_inlier_ratio",
+    "abs_pose_max_error": "IncrementalPipelineOptions.mapper.abs_pose_max_error",
+    "filter_max_reproj_error": "IncrementalPipelineOptions.mapper.filter_max_reproj_error",
+    "max_reg_trials": "IncrementalPipelineOptions.mapper.max_reg_trials",
+    "multiple_models": "IncrementalPipelineOptions.multiple_models",
+}
+
+# The other SfmOptions fields, which are no one-to-one copy onto a pycolmap option.
+_SET_EXPLICITLY = (
+    "use_mask", "mask_erosion_px", "exposure", "denoise_sigma",  # our own preprocessing (sfm_images), not COLMAP's
+    "known_intrinsics", "camera_model",  # pick the reader's camera and which intrinsics bundle adjustment refines
+    "seed",  # also seeds COLMAP's global PRNG, and goes to two option objects
+    "num_threads",  # goes to the extraction, matching and mapping options alike
+)
 
 
 class TooFewRegisteredError(RuntimeError):
@@ -406,68 +431,93 @@ def _camera_params(K: np.ndarray) -> str:
     return ",".join(repr(float(v)) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2]))
 
 
-def _extraction_options(options: SfmOptions) -> pycolmap.FeatureExtractionOptions:
+def _owner(name: str) -> str:
+    """Name of the pycolmap option class that :data:`_COLMAP_ATTRIBUTES` puts field ``name`` on."""
+    return _COLMAP_ATTRIBUTES[name].partition(".")[0]
+
+
+def _new_colmap_object(owner: str) -> object:
+    """A new ``pycolmap.{owner}`` option object with COLMAP's defaults."""
     import pycolmap
 
-    extraction = pycolmap.FeatureExtractionOptions()
+    if not hasattr(pycolmap, owner):
+        raise AttributeError(f"pycolmap {pycolmap.__version__} has no option class {owner} (see sfm._COLMAP_ATTRIBUTES)")
+    return getattr(pycolmap, owner)()
+
+
+def _attribute(target: object, name: str) -> tuple[object, str]:
+    """Object holding the pycolmap attribute of field ``name`` within ``target``, and the attribute's name.
+
+    Raises
+    ------
+    AttributeError
+        Naming the field and the pycolmap attribute, if this pycolmap lacks it.
+    """
+    import pycolmap
+
+    path = _COLMAP_ATTRIBUTES[name]
+    parent, *steps = path.split(".")
+    for depth, step in enumerate(steps):
+        if not hasattr(target, step):
+            raise AttributeError(
+                f"{CONFIG_PREFIX}{name} maps onto pycolmap.{path}, but pycolmap {pycolmap.__version__} "
+                f"has no attribute {step!r} on {parent} (see sfm._COLMAP_ATTRIBUTES)"
+            )
+        if depth < len(steps) - 1:
+            target, parent = getattr(target, step), f"{parent}.{step}"
+    return target, steps[-1]
+
+
+def _colmap_object(owner: str, options: SfmOptions) -> object:
+    """A new ``pycolmap.{owner}`` option object carrying every field that :data:`_COLMAP_ATTRIBUTES` puts on it."""
+    target = _new_colmap_object(owner)
+    for name in _COLMAP_ATTRIBUTES:
+        if _owner(name) == owner:
+            holder, attribute = _attribute(target, name)
+            value = getattr(options, name)
+            try:
+                setattr(holder, attribute, value)
+            except TypeError as error:  # pybind11's own message names neither the field nor the attribute
+                path = _COLMAP_ATTRIBUTES[name]
+                raise TypeError(f"{CONFIG_PREFIX}{name}: pycolmap.{path} does not take {value!r}") from error
+    return target
+
+
+def _extraction_options(options: SfmOptions) -> pycolmap.FeatureExtractionOptions:
+    """SIFT extraction options of ``options`` (CPU)."""
+    extraction = _colmap_object("FeatureExtractionOptions", options)
+    # Not SfmOptions fields: COLMAP runs on the CPU, on the views at their full size.
     extraction.use_gpu = False
-    extraction.num_threads = options.num_threads
     extraction.max_image_size = -1
-    sift = extraction.sift
-    sift.max_num_features = options.max_num_features
-    sift.first_octave = options.first_octave
-    sift.num_octaves = options.num_octaves
-    sift.octave_resolution = options.octave_resolution
-    sift.peak_threshold = options.peak_threshold
-    sift.edge_threshold = options.edge_threshold
-    sift.estimate_affine_shape = options.estimate_affine_shape
-    sift.domain_size_pooling = options.domain_size_pooling
+    extraction.num_threads = options.num_threads
     return extraction
 
 
 def _matching_options(options: SfmOptions) -> tuple[pycolmap.FeatureMatchingOptions, pycolmap.TwoViewGeometryOptions]:
-    import pycolmap
-
-    matching = pycolmap.FeatureMatchingOptions()
+    """Exhaustive matching and two-view verification options of ``options`` (CPU)."""
+    matching = _colmap_object("FeatureMatchingOptions", options)
     matching.use_gpu = False
     matching.num_threads = options.num_threads
-    matching.guided_matching = options.guided_matching
-    matching.sift.max_ratio = options.max_ratio
-    matching.sift.max_distance = options.max_distance
-    matching.sift.cross_check = options.cross_check
-    verification = pycolmap.TwoViewGeometryOptions()
-    verification.min_num_inliers = options.two_view_min_num_inliers
-    verification.ransac.max_error = options.two_view_max_error
-    verification.ransac.max_num_trials = options.two_view_max_num_trials
+    verification = _colmap_object("TwoViewGeometryOptions", options)
+    # Derived: RANSAC's floor of trials may not exceed the cap two_view_max_num_trials.
     verification.ransac.min_num_trials = min(verification.ransac.min_num_trials, options.two_view_max_num_trials)
     verification.ransac.random_seed = options.seed
     return matching, verification
 
 
 def _mapping_options(options: SfmOptions, image_path: Path) -> pycolmap.IncrementalPipelineOptions:
-    import pycolmap
-
-    mapping = pycolmap.IncrementalPipelineOptions()
+    """Incremental mapping options of ``options`` for the views in ``image_path``."""
+    mapping = _colmap_object("IncrementalPipelineOptions", options)
     mapping.num_threads = options.num_threads
     mapping.random_seed = options.seed
     mapping.image_path = image_path
     mapping.extract_colors = False
-    mapping.min_num_matches = options.min_num_matches
-    mapping.multiple_models = options.multiple_models
     fixed = options.known_intrinsics
     # COLMAP copies ba_refine_focal_length/extra_params into the mapper's
     # abs_pose_refine_* options, so these also fix intrinsics during registration.
     mapping.ba_refine_focal_length = not fixed
     mapping.ba_refine_principal_point = False
     mapping.ba_refine_extra_params = not fixed
-    mapper = mapping.mapper
-    mapper.init_min_num_inliers = options.init_min_num_inliers
-    mapper.init_min_tri_angle = options.init_min_tri_angle
-    mapper.abs_pose_min_num_inliers = options.abs_pose_min_num_inliers
-    mapper.abs_pose_min_inlier_ratio = options.abs_pose_min_inlier_ratio
-    mapper.abs_pose_max_error = options.abs_pose_max_error
-    mapper.filter_max_reproj_error = options.filter_max_reproj_error
-    mapper.max_reg_trials = options.max_reg_trials
     return mapping
 
 
