@@ -1,14 +1,21 @@
 """Summary tables and claims from small synthetic tidy tables: values land in the right cells,
 the paper's numbers sit beside ours, and each claim flips when the data contradict it."""
 
+import dataclasses
 import io
+from html.parser import HTMLParser
+from pathlib import Path
 
 import pandas as pd
 import pytest
+import yaml
 
 from freqbrdf import tables
-from freqbrdf.tables import check_tidy, claims, parameter_table, relighting_table
+from freqbrdf.methods import METHODS, ablation_method, paper_method
+from freqbrdf.tables import check_tidy, claims, parameter_table, read_paper_results, relighting_table
 
+PAPER_FILE = Path(__file__).resolve().parents[1] / "config" / "paper_results.yaml"
+PAPER = read_paper_results(PAPER_FILE)
 ENV_KINDS = {"studio": "studio", "sunny": "sunny", "museum": "museum", "overcast": "overcast"}
 
 
@@ -51,7 +58,7 @@ def full_run(overrides=None) -> pd.DataFrame:
 
 
 def verdicts(df) -> dict[str, str]:
-    table = claims(df)
+    table = claims(df, PAPER)
     return dict(zip(table.claim, table.holds))
 
 
@@ -68,7 +75,7 @@ def test_parameter_table_puts_means_and_paper_values_in_the_right_cells():
               + mse_rows("freq", 0.30, "sunny") + mse_rows("spectrum", 0.5, "studio")
               + [("sphere", "studio", "freq", "time_total_s", 3.0), ("sphere", "sunny", "freq", "time_total_s", 5.0),
                  ("sphere", "studio", "freq", "pearson_entropy_error", 0.25)])
-    table = parameter_table(df, ENV_KINDS)
+    table = parameter_table(df, PAPER, ENV_KINDS)
     studio, sunny = "studio [paper: Photo Studio]", "sunny [paper: Rural Road]"
     assert list(table.columns) == ["Method", "source", studio, sunny, "Avg.", "Time"]
     # mean over the two objects, with the parts in brackets
@@ -90,10 +97,10 @@ def test_parameter_table_puts_means_and_paper_values_in_the_right_cells():
 
 def test_environment_kinds_place_the_paper_columns():
     df = tidy(mse_rows("freq", 0.1, "lab"))
-    table = parameter_table(df, {"lab": "overcast"})
+    table = parameter_table(df, PAPER, {"lab": "overcast"})
     assert cell(table, "lab [paper: Overcast]", Method="Ours (freq)", source="paper") == "0.06 (0.02, 0.07, 0.09)"
     # an environment of unknown kind gets no paper value
-    table = parameter_table(df, {})
+    table = parameter_table(df, PAPER, {})
     assert cell(table, "lab", Method="Ours (freq)", source="paper") == tables.MISSING
 
 
@@ -101,7 +108,7 @@ def test_relighting_table_means_paper_rows_and_extra_methods():
     df = tidy([("sphere", "studio", "freq", "psnr_h", 20.0, "museum"), ("sphere", "studio", "freq", "psnr_h", 22.0, "sunny"),
                ("sphere", "studio", "freq", "ssim", 0.9, "museum"), ("sphere", "studio", "rh2001", "psnr_h", 18.0, "museum"),
                ("sphere", "studio", "freq", "time_s", 7.0)])
-    table = relighting_table(df)
+    table = relighting_table(df, PAPER)
     assert cell(table, "PSNR-H", method="freq") == "21.00"
     assert cell(table, "PSNR-H (paper)", method="freq") == "26.68"
     assert cell(table, "SSIM", method="freq") == "0.900"
@@ -116,14 +123,14 @@ def test_relighting_table_means_paper_rows_and_extra_methods():
 
 def test_ablation_and_finetune_tables():
     df = full_run()
-    ablation = tables.ablation_table(df)
+    ablation = tables.ablation_table(df, PAPER)
     assert list(ablation.method) == ["rh2001", "freq_nomask", "freq_noshadow", "freq"]
     assert cell(ablation, "MSE", method="freq_nomask") == "0.090"
     assert cell(ablation, "Shadowing", method="freq_nomask") == "yes"
     assert cell(ablation, "Masking", method="freq_nomask") == "no"
     assert cell(ablation, "MSE (paper)", method="freq_nomask") == "0.14"
     assert cell(ablation, "MSE (paper)", method="freq_noshadow") == "0.13"
-    finetune = tables.finetune_table(df)
+    finetune = tables.finetune_table(df, PAPER)
     assert cell(finetune, "PSNR-H", method="freq+mitsuba") == "26.50"
     assert cell(finetune, "PSNR-H (paper)", method="freq+mitsuba") == "27.04"
     assert cell(finetune, "Total time (paper)", method="mitsuba") == "70 s"
@@ -168,7 +175,7 @@ def test_claims_without_mitsuba_say_not_run_and_keep_the_others():
     assert result["Our entropy correlates positively with Mitsuba's per-texel error"] == "not run"
     assert result["Fine-tuning our result with Mitsuba improves on ours"] == "not run"
     assert result["Shadowing and masking each improve on Ramamoorthi-Hanrahan; both together are best"] == "yes"
-    table = claims(df)
+    table = claims(df, PAPER)
     ours = dict(zip(table.claim, table.ours))
     assert ours["Our entropy correlates positively with Mitsuba's per-texel error"] == "freq 0.30"
     assert ours["Shadowing and masking each improve on Ramamoorthi-Hanrahan; both together are best"] == (
@@ -191,26 +198,175 @@ def test_csv_round_trip_reads_empty_relight_env_as_blank():
         check_tidy(pd.read_csv(io.StringIO(text)).drop(columns="relight_env"))
 
 
-def test_markdown_latex_and_html_rendering():
+class Cells(HTMLParser):
+    """(tag, our classes, text) of every th/td, leaving out the classes Styler adds for its own CSS."""
+
+    STYLER = ("data", "row", "col", "level", "blank", "index_name")
+
+    def __init__(self, page: str):
+        super().__init__(convert_charrefs=True)
+        self.cells: list[tuple[str, set[str], str]] = []
+        self.feed(page)
+
+    def handle_starttag(self, tag, attrs):
+        if tag in ("th", "td"):
+            classes = (dict(attrs).get("class") or "").split()
+            self.cells.append((tag, {c for c in classes if not c.startswith(self.STYLER)}, ""))
+
+    def handle_data(self, data):
+        if self.cells:
+            tag, classes, text = self.cells[-1]
+            self.cells[-1] = (tag, classes, text + data.strip())
+
+
+def td_classes(page: str) -> list[tuple[str, set[str]]]:
+    return [(text, classes) for tag, classes, text in Cells(page).cells if tag == "td"]
+
+
+def test_markdown_rendering():
     table = pd.DataFrame({"method": ["freq_nomask", "a|b"], "MSE": ["0.100", "not run"], "Time": ["3.1 s", "-"]})
     md = tables.to_markdown(table, title="T", caption="C").splitlines()
     assert md[0] == "### T" and md[-1] == "C"
     assert md[2] == "| method | MSE | Time |"
     assert md[3] == "|---|---:|---:|"  # numeric columns right-aligned
     assert md[5] == r"| a\|b | not run | - |"
-    tex = tables.to_latex(table, caption="50% of x_y", label="tab:t")
-    assert r"\begin{tabular}{lrr}" in tex
-    assert r"freq\_nomask & 0.100 & 3.1 s \\" in tex
-    assert r"\caption{50\% of x\_y}" in tex and r"\label{tab:t}" in tex
+
+
+def test_latex_escapes_cells_headers_and_caption_and_aligns_numbers():
+    table = pd.DataFrame({"method_name": ["freq_nomask", "R&D 50%"], "MSE": ["0.100", "not run"],
+                          "Time": ["3.1 s", "-"]})
+    tex = tables.to_latex(table, caption="50% of x_y & z", label="tab:t")
+    lines = tex.splitlines()
+    assert lines[0] == r"\begin{table}[ht]" and lines[-1] == r"\end{table}" and tex.endswith("\n")
+    assert r"\begin{tabular}{lrr}" in lines  # numeric columns right-aligned
+    assert r"\toprule" in lines and r"\midrule" in lines and r"\bottomrule" in lines
+    assert r"method\_name & MSE & Time \\" in lines
+    assert r"freq\_nomask & 0.100 & 3.1 s \\" in lines
+    assert r"R\&D 50\% & not run & - \\" in lines
+    assert r"\caption{50\% of x\_y \& z}" in lines and r"\label{tab:t}" in lines
+    # No unescaped special character is left in the body.
+    body = "\n".join(lines[lines.index(r"\midrule"):lines.index(r"\bottomrule")])
+    assert "R&D" not in body and " 50%" not in body
     assert tables.latex_escape("a < b >= c") == r"a \textless{} b \textgreater{}= c"
-    verdicts = pd.DataFrame({"shadowing": ["yes", "no", "no"], "holds": ["yes", "no", "not run"]})
-    page = tables.html_page("P", tables.to_html(verdicts, verdicts="holds"))
-    assert '<td class="yes">yes</td>' in page and '<td class="no">no</td>' in page
-    assert '<td class="notrun">not run</td>' in page and "<script" not in page
-    assert "<td>no</td>" in page  # only the verdict column is coloured
-    assert tables.to_html(verdicts).count('class="yes"') == 0
+    assert r"a \textless{} b" in tables.to_latex(pd.DataFrame({"x": ["a < b"]}))
+
+
+def test_html_marks_verdict_cells_escapes_and_is_a_valid_fragment():
+    verdicts = pd.DataFrame({"shadowing": ["yes", "no", "no"], "holds": ["yes", "no", "not run"],
+                             "time": ["3 s", "not run", "<b>&"]})
+    fragment = tables.to_html(verdicts, title="T<1>", caption="a & b", verdicts="holds")
+    cells = td_classes(fragment)
+    assert cells[1] == ("yes", {"yes"}) and cells[4] == ("no", {"no"}) and cells[7] == ("not run", {"notrun"})
+    assert cells[3] == ("no", set())  # only the verdict column is coloured
+    assert cells[5] == ("not run", {"notrun"})  # greyed anywhere
+    assert "<b>" not in fragment and "&lt;b&gt;&amp;" in fragment
+    assert fragment.startswith("<h2>T&lt;1&gt;</h2>\n<table") and '<p class="caption">a &amp; b</p>' in fragment
+    assert [c for tag, _, c in Cells(fragment).cells if tag == "th"] == ["shadowing", "holds", "time"]
+    assert "<style" not in fragment and "<script" not in fragment  # the page's head holds the style
+    assert td_classes(tables.to_html(verdicts))[1] == ("yes", set())
+    numbers = pd.DataFrame({"method": ["freq"], "MSE": ["0.100"]})
+    assert td_classes(tables.to_html(numbers)) == [("freq", set()), ("0.100", {"num"})]
+    # Tables of one page get distinct ids, the same from run to run.
+    assert tables.to_html(verdicts) == tables.to_html(verdicts)
+    ids = [part.split('"')[1] for part in (tables.to_html(verdicts), tables.to_html(numbers))
+           for part in part.split("<table id=")[1:]]
+    assert len(set(ids)) == 2
+    page = tables.html_page("P", fragment)
+    assert page.startswith("<!DOCTYPE html>") and page.count("<style>") == 1
+    assert page.index("<style>") < page.index("<body>")
+
+
+def write_paper(tmp_path, edit) -> Path:
+    """A copy of the paper's results with ``edit`` applied to the loaded YAML."""
+    data = yaml.safe_load(PAPER_FILE.read_text())
+    edit(data)
+    path = tmp_path / "paper_results.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["table1"]["Ours"].pop("psnr_h"), r"key table1\.Ours\.psnr_h: missing"),
+    (lambda d: d["table4"]["Masking"].update(mse="0.13"), r"key table4\.Masking\.mse: expected a number"),
+    (lambda d: d["table4"]["Masking"].update(masking=1), r"key table4\.Masking\.masking: expected true or false"),
+    (lambda d: d["table5"]["Constant"].update({"psnr-h": 1.0}), r"key table5\.Constant\.psnr-h: unexpected"),
+    (lambda d: d["table2"]["rows"]["Ours"]["mse"].pop("Museum"), r"key table2\.rows\.Ours\.mse\.Museum: missing"),
+    (lambda d: d["table2"]["rows"]["Ours"]["mse"].update(Museum=[0.07, 0.02]),
+     r"key table2\.rows\.Ours\.mse\.Museum: expected \[average"),
+    (lambda d: d["table2"]["correlation"].update({"with": "NVDiffRec"}), r"key table2\.correlation\.with: 'NVDiffRec'"),
+    (lambda d: d["table4"]["Masking"].update(shadowing=True), r"key table4: needs one row per \(shadowing, masking\)"),
+    (lambda d: d["table5"].pop("Full optimization - Constant"),
+     r"key table5\.Full optimization - Constant: missing \(the claims quote it\)"),
+    (lambda d: d.pop("claims"), r"key claims: missing"),
+    (lambda d: d.update(table1=[]), r"key table1: expected a non-empty mapping"),
+])
+def test_the_loader_names_the_file_and_the_key_of_a_malformed_entry(tmp_path, edit, message):
+    path = write_paper(tmp_path, edit)
+    with pytest.raises(tables.PaperResultsError, match=message) as error:
+        read_paper_results(path)
+    text = str(error.value)
+    assert text.startswith(f"{path}: key ") and "\n" not in text
+
+
+def test_the_loader_reads_the_papers_numbers():
+    assert PAPER.table1["NVDiffRec"]["psnr_h"] == 24.319
+    assert PAPER.table2["Ours-Spectrum Only"].mse["Rural Road"] == (0.22, 0.06, 0.16, 0.43)
+    assert PAPER.table2["Mitsuba"].time_s == 105.19
+    assert PAPER.environments["sunny"] == "Rural Road" and PAPER.correlation_with == "Mitsuba"
+    assert PAPER.ablation_row(False, True).values["mse"] == 0.13
+    assert PAPER.criteria == tables.ClaimCriteria(0.03, 1.0, 3.0)
+
+
+def test_every_paper_row_of_the_registry_is_in_the_papers_table():
+    rows = {"table1": PAPER.table1, "table2": PAPER.table2, "table4": PAPER.table4, "table5": PAPER.table5}
+    for name, method in METHODS.items():
+        for table, row in method.paper_rows.items():
+            assert row in rows[table], f"method {name}: {table} row {row!r} is not in {PAPER_FILE.name}"
+    # The Table 4 labels and flags agree with the methods' own shadowing and masking.
+    for label, row in PAPER.table4.items():
+        assert paper_method("table4", label) == ablation_method(row.shadowing, row.masking), label
+
+
+def test_claims_quote_the_papers_numbers():
+    assert list(claims(full_run(), PAPER).paper) == [
+        "33.5x (105.19 s vs 3.14 s, Table 2); 13.3x on Stanford-ORB (Table 1)",
+        "1.20 s < 3.14 s < 105.19 s (Table 2)",
+        "MSE 0.06 vs 0.04 (Table 2)",
+        "PSNR-H 26.68 vs 26.60 dB (Table 1)",
+        "MSE 0.06 vs 0.21 (Table 2)",
+        "MSE neither 0.16, shadowing 0.14, masking 0.13, both 0.12 (Table 4)",
+        "PSNR-H 27.04 vs 26.68 dB (Tables 1, 5)",
+        "PSNR-H +0.44 dB, 19.87 s vs 69.96 s (Table 5)",
+        "Pearson 0.13 to 0.21, mean 0.16 (Table 2)",
+    ]
+    criteria = list(claims(full_run(), PAPER).criterion)
+    assert "MSE(freq) - MSE(mitsuba) <= 0.03" in criteria
+    assert "PSNR-H(freq) >= PSNR-H(mitsuba) - 1.0 dB" in criteria
+    assert "MSE(freq) < MSE(freq_noshadow), MSE(freq_nomask) < MSE(rh2001)" in criteria
+    assert criteria[7].endswith("time(freq+mitsuba) < time(mitsuba) / 3")
+    assert tables.fmt_paper(26.595, 2) == "26.60" and tables.fmt_paper(0.443, 2, sign=True) == "+0.44"
+    assert tables.fmt_paper(0.125, 2) == "0.13"  # half up, as printed numbers round
+
+
+def test_tolerances_come_from_the_papers_results():
+    strict = dataclasses.replace(PAPER, criteria=tables.ClaimCriteria(0.01, 0.1, 10.0))
+    table = claims(full_run(), strict)
+    result = dict(zip(table.claim, table.holds))
+    assert result["Parameter accuracy comparable to Mitsuba"] == "no"  # 0.06 - 0.04 > 0.01
+    assert result["Relighting on par with Mitsuba"] == "no"  # 25.8 < 26.0 - 0.1
+    assert result["Ours + Mitsuba beats Mitsuba alone in less than a third of its time"] == "no"  # 20 s > 100 s / 10
+
+
+def test_extra_methods_follow_the_registrys_order():
+    df = full_run()
+    table = parameter_table(df, PAPER, ENV_KINDS)
+    here = [m for m, source in zip(table.Method, table.source) if source == "here" and "correlation" not in m]
+    names = [m.rsplit("(", 1)[1].rstrip(")") for m in here]
+    paired = [paper_method("table2", label) for label in PAPER.table2]
+    assert names[:3] == paired == ["mitsuba", "freq", "spectrum"]
+    assert names[3:] == [m for m in METHODS if m in set(df.method) and m not in paired]
 
 
 def test_summaries_cover_the_four_tables_and_the_claims():
-    keys = [s.key for s in tables.summaries(full_run(), ENV_KINDS)]
+    keys = [s.key for s in tables.summaries(full_run(), PAPER, ENV_KINDS)]
     assert keys == ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "claims"]

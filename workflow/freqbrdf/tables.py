@@ -12,140 +12,268 @@ number, columns ``object, env, poses, method, relight_env, metric, value``
   method's per-texel squared parameter error;
 - ``time_s``, ``max_rss_mb``, ``time_total_s``, ``speed_ratio_vs_mitsuba``.
 
+The paper's numbers come from ``config/paper_results.yaml``
+(:func:`read_paper_results`); which of our methods stands beside which of the
+paper's rows, the methods' labels and their order come from the registry
+:mod:`freqbrdf.methods`.
+
 Every summary is a mean over the rows given (objects, capture environments,
 relighting environments); callers select one pose source first. A method that
 has no row at all is shown as ``not run``; a method that ran but lacks a
 metric as ``-``. The tables are DataFrames of display strings, rendered by
-:func:`to_markdown`, :func:`to_latex` and :func:`to_html` (no dependency on
-``tabulate``).
+:func:`to_markdown` (hand-written: pandas' own needs ``tabulate``),
+:func:`to_latex` and :func:`to_html` (pandas' Styler, which needs ``jinja2``).
 """
 
 from __future__ import annotations
 
 import html
 import math
-from collections.abc import Mapping, Sequence
+import re
+import zlib
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass
+from decimal import ROUND_HALF_UP, Decimal
+from itertools import product
+from os import PathLike
 
 import pandas as pd
+import yaml
+from pandas.io.formats.style import Styler
+
+from .methods import METHODS, ablation_method, paper_method
 
 NOT_RUN = "not run"
 MISSING = "-"
 
 # ---------------------------------------------------------------------------
-# The paper's numbers: Wiersma et al. 2024, "Fast and Uncertainty-Aware SVBRDF
-# Recovery from Multi-View Capture using Frequency Domain Analysis",
-# arXiv 2406.17774. Timings are theirs (RTX 4090 + Ryzen 9 7950X); ours run on
-# 2 CPU cores, so only ratios of times are comparable.
+# The paper's numbers (config/paper_results.yaml)
 # ---------------------------------------------------------------------------
 
-# Table 1: novel-scene relighting on Stanford-ORB (PSNR-H on linear HDR, PSNR-L
-# on tone-mapped LDR, SSIM, LPIPS, optimisation time). Keys are the paper's row
-# labels; PAPER_TABLE1_METHODS maps them to our methods (None: not in this pipeline).
-PAPER_TABLE1: dict[str, dict[str, float]] = {
-    "NVDiffRec": {"psnr_h": 24.319, "psnr_l": 31.492, "ssim": 0.969, "lpips": 0.036, "time_s": 142.143},
-    "Mitsuba": {"psnr_h": 26.595, "psnr_l": 34.185, "ssim": 0.977, "lpips": 0.032, "time_s": 69.96},
-    "Ours": {"psnr_h": 26.677, "psnr_l": 33.936, "ssim": 0.977, "lpips": 0.029, "time_s": 5.27},
-    "Ours-Spectrum Only": {"psnr_h": 24.478, "psnr_l": 31.117, "ssim": 0.971, "lpips": 0.037, "time_s": 1.96},
-    "Ours+Mitsuba (1 epoch)": {"psnr_h": 27.038, "psnr_l": 34.560, "ssim": 0.978, "lpips": 0.030, "time_s": 19.87},
-    "Ours+Mitsuba (2 epochs)": {"psnr_h": 27.199, "psnr_l": 34.770, "ssim": 0.978, "lpips": 0.029, "time_s": 33.39},
-}
-PAPER_TABLE1_METHODS: dict[str, str | None] = {
-    "NVDiffRec": None,
-    "Mitsuba": "mitsuba",
-    "Ours": "freq",
-    "Ours-Spectrum Only": "spectrum",
-    "Ours+Mitsuba (1 epoch)": "freq+mitsuba",
-    "Ours+Mitsuba (2 epochs)": None,
-}
+RELIGHT_FIELDS = ("psnr_h", "psnr_l", "ssim", "lpips", "time_s")
+"""Numbers of a row of the paper's Tables 1 and 5."""
+ABLATION_FIELDS = ("psnr_h", "psnr_l", "ssim", "lpips", "time_orb_s", "mse", "time_s")
+"""Numbers of a row of the paper's Table 4 (besides its shadowing and masking flags)."""
+AVERAGE = "Average"
+"""The key of the paper's Table 2 values averaged over its environments."""
+CRITERIA_FIELDS = ("accuracy_tolerance_mse", "relight_tolerance_db", "finetune_time_divisor")
 
-# Table 2: synthetic benchmark, parameter MSE "Average (BaseColor, Roughness,
-# Metallicity)" per environment, and the error-entropy correlation (our entropy
-# vs Mitsuba's per-texel squared error). Environments are keyed by the kind of
-# our nearest analogue: Photo Studio -> studio, Overcast -> overcast,
-# Museum -> museum, Rural Road (outdoor, sun) -> sunny.
-PAPER_ENV_NAMES: dict[str, str] = {
-    "studio": "Photo Studio", "overcast": "Overcast", "museum": "Museum", "sunny": "Rural Road",
-}
-PAPER_TABLE2_MSE: dict[str, dict[str, tuple[float, float, float, float]]] = {
-    "mitsuba": {
-        "studio": (0.04, 0.01, 0.03, 0.07), "overcast": (0.03, 0.01, 0.02, 0.06),
-        "museum": (0.04, 0.01, 0.04, 0.08), "sunny": (0.04, 0.01, 0.03, 0.07),
-        "avg": (0.04, 0.01, 0.03, 0.07),
-    },
-    "freq": {
-        "studio": (0.07, 0.02, 0.09, 0.10), "overcast": (0.06, 0.02, 0.07, 0.09),
-        "museum": (0.07, 0.02, 0.08, 0.11), "sunny": (0.05, 0.01, 0.05, 0.08),
-        "avg": (0.06, 0.02, 0.07, 0.09),
-    },
-    "spectrum": {
-        "studio": (0.19, 0.07, 0.15, 0.37), "overcast": (0.20, 0.06, 0.14, 0.40),
-        "museum": (0.25, 0.09, 0.20, 0.46), "sunny": (0.22, 0.06, 0.16, 0.43),
-        "avg": (0.21, 0.07, 0.16, 0.41),
-    },
-}
-PAPER_TABLE2_TIME_S: dict[str, float] = {"mitsuba": 105.19, "freq": 3.14, "spectrum": 1.20}
-PAPER_TABLE2_CORRELATION: dict[str, float] = {
-    "studio": 0.21, "overcast": 0.13, "museum": 0.18, "sunny": 0.14, "avg": 0.16,
-}
+# The paper's rows that the claims quote: Tables 1 and 2 label their methods
+# alike; in Table 5, "Ours" is fine-tuned and the last row is Mitsuba alone.
+MITSUBA, OURS, SPECTRUM = "Mitsuba", "Ours", "Ours-Spectrum Only"
+FINETUNED, MITSUBA_FULL = "Ours", "Full optimization - Constant"
+CLAIM_ROWS = {"table1": (MITSUBA, OURS), "table2": (MITSUBA, OURS, SPECTRUM), "table5": (FINETUNED, MITSUBA_FULL)}
 
-# Table 4: BRDF-model ablation, without cosine weighting of the samples.
-# Keys (shadowing, masking); Stanford-ORB relighting and synthetic MSE / time.
-PAPER_TABLE4: dict[tuple[bool, bool], dict[str, float]] = {
-    (False, False): {"psnr_h": 25.646, "psnr_l": 32.809, "ssim": 0.973, "lpips": 0.035, "time_orb_s": 1.09,
-                     "mse": 0.16, "time_s": 2.57},
-    (True, False): {"psnr_h": 26.245, "psnr_l": 33.399, "ssim": 0.975, "lpips": 0.034, "time_orb_s": 1.21,
-                    "mse": 0.14, "time_s": 2.81},
-    (False, True): {"psnr_h": 26.070, "psnr_l": 33.101, "ssim": 0.974, "lpips": 0.035, "time_orb_s": 1.19,
-                    "mse": 0.13, "time_s": 2.89},
-    (True, True): {"psnr_h": 26.411, "psnr_l": 33.557, "ssim": 0.975, "lpips": 0.034, "time_orb_s": 1.31,
-                   "mse": 0.12, "time_s": 3.14},
-}
-# Our method for each (shadowing, masking) pair (README: gradient-descent estimator).
-ABLATION_METHODS: dict[tuple[bool, bool], str] = {
-    (False, False): "rh2001", (True, False): "freq_nomask", (False, True): "freq_noshadow", (True, True): "freq",
-}
 
-# Table 5: fine-tuning with Mitsuba from different initialisations (Stanford-ORB):
-# 1 epoch at 16 spp for the first three rows, 2 epochs at 32 spp for the fourth;
-# the last row is Mitsuba's full optimisation from a constant. The extra row
-# "Ours, no fine-tuning" is Table 1's "Ours", for reference.
-PAPER_TABLE5: dict[str, dict[str, float]] = {
-    "Constant": {"psnr_h": 24.339, "psnr_l": 30.558, "ssim": 0.969, "lpips": 0.047, "time_s": 14.74},
-    "Ours-Spectrum Only": {"psnr_h": 25.745, "psnr_l": 33.158, "ssim": 0.975, "lpips": 0.033, "time_s": 16.29},
-    "Ours": {"psnr_h": 27.038, "psnr_l": 34.560, "ssim": 0.978, "lpips": 0.030, "time_s": 19.87},
-    "Ours (2 epochs)": {"psnr_h": 27.199, "psnr_l": 34.770, "ssim": 0.978, "lpips": 0.029, "time_s": 33.39},
-    "Full optimization - Constant": {"psnr_h": 26.595, "psnr_l": 34.185, "ssim": 0.977, "lpips": 0.032,
-                                     "time_s": 69.96},
-    "Ours, no fine-tuning (Table 1)": {"psnr_h": 26.677, "psnr_l": 33.936, "ssim": 0.977, "lpips": 0.029,
-                                       "time_s": 5.27},
-}
-PAPER_TABLE5_METHODS: dict[str, str | None] = {
-    "Constant": None,
-    "Ours-Spectrum Only": None,
-    "Ours": "freq+mitsuba",
-    "Ours (2 epochs)": None,
-    "Full optimization - Constant": "mitsuba",
-    "Ours, no fine-tuning (Table 1)": "freq",
-}
+class PaperResultsError(ValueError):
+    """The paper's results file is malformed; the one-line message names the file and the key."""
 
-# Display names of our methods.
-METHOD_LABELS: dict[str, str] = {
-    "mitsuba": "Mitsuba", "freq": "Ours", "spectrum": "Ours-Spectrum Only", "freq+mitsuba": "Ours+Mitsuba",
-    "freq_paper": "Ours, paper's band limit", "freq_noshadow": "Ours, no shadowing", "freq_nomask": "Ours, no masking", "rh2001": "RH2001 (neither)",
-}
 
-# ---------------------------------------------------------------------------
-# Criteria of the claims table (see claims()).
-# ---------------------------------------------------------------------------
-# "Comparable accuracy to Mitsuba": the paper's gap in average parameter MSE is
-# 0.02 (0.06 vs 0.04); we accept up to 1.5 times that.
-ACCURACY_TOLERANCE_MSE = 0.03
-# "Relighting on par with Mitsuba": the paper's methods lie within 0.1 dB
-# PSNR-H; 1 dB is the smallest difference we call a real loss.
-RELIGHT_TOLERANCE_DB = 1.0
-# "Fine-tuning in less than a third of Mitsuba's time" (paper section 5.6.1).
-FINETUNE_TIME_FRACTION = 1.0 / 3.0
+@dataclass(frozen=True)
+class ParameterRow:
+    """One method row of the paper's Table 2.
+
+    Attributes
+    ----------
+    mse : Mapping[str, tuple of float]
+        Paper environment name, or :data:`AVERAGE`, -> (average, base colour,
+        roughness, metallic) parameter MSE.
+    time_s : float
+        Optimisation time on the authors' GPU machine.
+    """
+
+    mse: Mapping[str, tuple[float, float, float, float]]
+    time_s: float
+
+
+@dataclass(frozen=True)
+class AblationRow:
+    """One row of the paper's Table 4: which terms the model has, and its numbers (:data:`ABLATION_FIELDS`)."""
+
+    shadowing: bool
+    masking: bool
+    values: Mapping[str, float]
+
+
+@dataclass(frozen=True)
+class ClaimCriteria:
+    """Thresholds of the claims table, derived from the paper's numbers (see the YAML's comments)."""
+
+    accuracy_tolerance_mse: float
+    relight_tolerance_db: float
+    finetune_time_divisor: float
+
+
+@dataclass(frozen=True)
+class PaperResults:
+    """The paper's numbers, keyed by its row labels (``config/paper_results.yaml``).
+
+    Attributes
+    ----------
+    table1, table5 : Mapping[str, Mapping[str, float]]
+        Row label -> :data:`RELIGHT_FIELDS` -> value.
+    environments : Mapping[str, str]
+        Kind of our environment -> name of the paper's environment of that kind (Table 2).
+    table2 : Mapping[str, ParameterRow]
+        Row label -> parameter MSE and time.
+    correlation_with : str
+        The Table 2 row whose per-texel error the paper correlates with our entropy.
+    correlation : Mapping[str, float]
+        Paper environment name, or :data:`AVERAGE`, -> that correlation.
+    table4 : Mapping[str, AblationRow]
+        Row label -> flags and numbers; one row per (shadowing, masking) pair.
+    criteria : ClaimCriteria
+    """
+
+    table1: Mapping[str, Mapping[str, float]]
+    environments: Mapping[str, str]
+    table2: Mapping[str, ParameterRow]
+    correlation_with: str
+    correlation: Mapping[str, float]
+    table4: Mapping[str, AblationRow]
+    table5: Mapping[str, Mapping[str, float]]
+    criteria: ClaimCriteria
+
+    def ablation_row(self, shadowing: bool, masking: bool) -> AblationRow:
+        """The Table 4 row with this (shadowing, masking) pair."""
+        return next(r for r in self.table4.values() if (r.shadowing, r.masking) == (shadowing, masking))
+
+
+def _key(where: str, key: object) -> str:
+    return f"{where}.{key}" if where else str(key)
+
+
+def _mapping(node: object, where: str) -> Mapping[str, object]:
+    """A non-empty mapping with string keys."""
+    if not isinstance(node, Mapping) or not node:
+        raise PaperResultsError(f"key {where or '<top level>'}: expected a non-empty mapping, got {node!r:.60}")
+    for key in node:
+        if not isinstance(key, str):
+            raise PaperResultsError(f"key {_key(where, key)}: labels must be strings")
+    return node
+
+
+def _record(node: object, where: str, fields: Sequence[str]) -> Mapping[str, object]:
+    """A mapping with exactly the keys ``fields``."""
+    node = _mapping(node, where)
+    missing = [f for f in fields if f not in node]
+    if missing:
+        raise PaperResultsError(f"key {_key(where, missing[0])}: missing")
+    unexpected = [k for k in node if k not in fields]
+    if unexpected:
+        raise PaperResultsError(f"key {_key(where, unexpected[0])}: unexpected (expected {', '.join(fields)})")
+    return node
+
+
+def _number(node: object, where: str) -> float:
+    # bool is an int subclass: `true` would otherwise read as 1.0.
+    if isinstance(node, bool) or not isinstance(node, (int, float)) or not math.isfinite(node):
+        raise PaperResultsError(f"key {where}: expected a number, got {node!r}")
+    return float(node)
+
+
+def _numbers(node: object, where: str, fields: Sequence[str]) -> dict[str, float]:
+    record = _record(node, where, fields)
+    return {f: _number(record[f], _key(where, f)) for f in fields}
+
+
+def _flag(node: object, where: str) -> bool:
+    if not isinstance(node, bool):
+        raise PaperResultsError(f"key {where}: expected true or false, got {node!r}")
+    return node
+
+
+def _label(node: object, where: str) -> str:
+    if not isinstance(node, str) or not node:
+        raise PaperResultsError(f"key {where}: expected a row label, got {node!r}")
+    return node
+
+
+def _mse_parts(node: object, where: str) -> tuple[float, float, float, float]:
+    if not isinstance(node, list) or len(node) != 4:
+        raise PaperResultsError(f"key {where}: expected [average, base colour, roughness, metallic], got {node!r}")
+    average, base, roughness, metallic = (_number(v, f"{where}[{k}]") for k, v in enumerate(node))
+    return average, base, roughness, metallic
+
+
+def _relight_rows(node: object, where: str) -> dict[str, dict[str, float]]:
+    return {label: _numbers(row, _key(where, label), RELIGHT_FIELDS) for label, row in _mapping(node, where).items()}
+
+
+def _table2(node: object, where: str = "table2"
+            ) -> tuple[dict[str, str], dict[str, ParameterRow], str, dict[str, float]]:
+    """Environments, rows, the correlated row and the correlation of the paper's Table 2."""
+    top = _record(node, where, ("environments", "rows", "correlation"))
+    at = _key(where, "environments")
+    environments = {kind: _label(name, _key(at, kind)) for kind, name in _mapping(top["environments"], at).items()}
+    columns = (*environments.values(), AVERAGE)
+    rows = {}
+    for label, row in _mapping(top["rows"], _key(where, "rows")).items():
+        at = _key(_key(where, "rows"), label)
+        record = _record(row, at, ("time_s", "mse"))
+        mse = _record(record["mse"], _key(at, "mse"), columns)
+        rows[label] = ParameterRow({c: _mse_parts(mse[c], _key(_key(at, "mse"), c)) for c in columns},
+                                   _number(record["time_s"], _key(at, "time_s")))
+    at = _key(where, "correlation")
+    correlation = _record(top["correlation"], at, ("with", "values"))
+    correlated = _label(correlation["with"], _key(at, "with"))
+    if correlated not in rows:
+        raise PaperResultsError(f"key {_key(at, 'with')}: {correlated!r} is not a row of {where}.rows {list(rows)}")
+    return environments, rows, correlated, _numbers(correlation["values"], _key(at, "values"), columns)
+
+
+def _table4(node: object, where: str = "table4") -> dict[str, AblationRow]:
+    """The paper's Table 4, checking that each (shadowing, masking) pair has exactly one row."""
+    rows = {}
+    for label, row in _mapping(node, where).items():
+        at = _key(where, label)
+        record = _record(row, at, ("shadowing", "masking", *ABLATION_FIELDS))
+        rows[label] = AblationRow(_flag(record["shadowing"], _key(at, "shadowing")),
+                                  _flag(record["masking"], _key(at, "masking")),
+                                  {f: _number(record[f], _key(at, f)) for f in ABLATION_FIELDS})
+    pairs = sorted((r.shadowing, r.masking) for r in rows.values())
+    if pairs != sorted(product((False, True), repeat=2)):
+        raise PaperResultsError(f"key {where}: needs one row per (shadowing, masking) pair, got {pairs}")
+    return rows
+
+
+def parse_paper_results(data: object) -> PaperResults:
+    """Check and type the paper's results as loaded from YAML.
+
+    Raises
+    ------
+    PaperResultsError
+        ``key <dotted.path>: <what is wrong>``.
+    """
+    top = _record(data, "", ("table1", "table2", "table4", "table5", "claims"))
+    environments, table2, correlated, correlation = _table2(top["table2"])
+    paper = PaperResults(
+        table1=_relight_rows(top["table1"], "table1"), environments=environments, table2=table2,
+        correlation_with=correlated, correlation=correlation, table4=_table4(top["table4"]),
+        table5=_relight_rows(top["table5"], "table5"),
+        criteria=ClaimCriteria(**_numbers(top["claims"], "claims", CRITERIA_FIELDS)),
+    )
+    for table, labels in CLAIM_ROWS.items():
+        missing = [label for label in labels if label not in getattr(paper, table)]
+        if missing:
+            raise PaperResultsError(f"key {table}.{missing[0]}: missing (the claims quote it)")
+    return paper
+
+
+def read_paper_results(path: str | PathLike[str]) -> PaperResults:
+    """Read and check ``config/paper_results.yaml``.
+
+    Raises
+    ------
+    PaperResultsError
+        One line: ``<path>: key <dotted.path>: <what is wrong>``.
+    """
+    with open(path) as f:
+        data = yaml.safe_load(f)
+    try:
+        return parse_paper_results(data)
+    except PaperResultsError as error:
+        raise PaperResultsError(f"{path}: {error}") from None
 
 
 # ---------------------------------------------------------------------------
@@ -239,6 +367,16 @@ def fmt_time(seconds: float | None) -> str:
     return f"{seconds:.3g} s" if seconds < 1000 else f"{seconds:.0f} s"
 
 
+def fmt_paper(value: float, digits: int, sign: bool = False) -> str:
+    """A paper's number rounded half up as its decimal form reads, for the claims' text.
+
+    ``f"{26.595:.2f}"`` gives ``26.59``, the binary float lying just below;
+    this gives ``26.60``, as the paper's 26.595 rounds.
+    """
+    rounded = Decimal(repr(value)).quantize(Decimal(1).scaleb(-digits), rounding=ROUND_HALF_UP)
+    return format(rounded, "+f" if sign else "f")
+
+
 def _ours(df: pd.DataFrame, method: str | None, text: str) -> str:
     """A cell of our numbers: ``not run`` when the method has no row at all."""
     if method is None or not (df.method == method).any():
@@ -259,6 +397,18 @@ def _mse_cell(values: Sequence[float | None], digits: int) -> str:
 # ---------------------------------------------------------------------------
 
 _RELIGHT_METRICS = (("psnr_h", "PSNR-H", 2), ("psnr_l", "PSNR-L", 2), ("ssim", "SSIM", 3))
+_MSE_METRICS = ("mse_average", "mse_base_color", "mse_roughness", "mse_metallic")
+
+
+def method_label(method: str) -> str:
+    """The display name of a registered method; an unregistered one (an old run's) shows its name."""
+    return METHODS[method].label if method in METHODS else method
+
+
+def ordered_methods(methods: Iterable[str]) -> list[str]:
+    """Distinct method names in the registry's order (that of tables and figures), then unregistered ones by name."""
+    order = list(METHODS)
+    return sorted(set(methods), key=lambda m: (order.index(m) if m in order else len(order), m))
 
 
 def _relight_cells(df: pd.DataFrame, method: str | None, paper: Mapping[str, float] | None) -> dict[str, str]:
@@ -272,16 +422,17 @@ def _relight_cells(df: pd.DataFrame, method: str | None, paper: Mapping[str, flo
     return cells
 
 
-def relighting_table(df: pd.DataFrame) -> pd.DataFrame:
+def relighting_table(df: pd.DataFrame, paper: PaperResults) -> pd.DataFrame:
     """Paper Table 1: relighting under held-out environments, per method.
 
-    Rows are the paper's methods (ours where this pipeline has them, ``not run``
-    otherwise), then any other method of ours with relighting numbers.
+    Rows are the paper's (ours beside them where the registry has one, ``not
+    run`` otherwise), then any other method of ours with relighting numbers.
 
     Parameters
     ----------
     df : DataFrame
         Tidy metrics (:func:`check_tidy`).
+    paper : PaperResults
 
     Returns
     -------
@@ -289,28 +440,21 @@ def relighting_table(df: pd.DataFrame) -> pd.DataFrame:
         ``Method, method, PSNR-H, PSNR-H (paper), PSNR-L, ..., Time, Time (paper)``.
     """
     rows = []
-    for label, method in PAPER_TABLE1_METHODS.items():
-        paper = PAPER_TABLE1[label]
-        row = {"Method": label, "method": method or MISSING, **_relight_cells(df, method, paper)}
+    for label, values in paper.table1.items():
+        method = paper_method("table1", label)
+        row = {"Method": label, "method": method or MISSING, **_relight_cells(df, method, values)}
         row["Time"] = _ours(df, method, fmt_time(method_time(df, method)) if method else MISSING)
-        row["Time (paper)"] = fmt_time(paper["time_s"])
+        row["Time (paper)"] = fmt_time(values["time_s"])
         rows.append(row)
-    relit = df[df.relight_env != ""]
-    listed = {m for m in PAPER_TABLE1_METHODS.values() if m}
-    for method in _ordered_methods(relit.method.unique()):
+    listed = {paper_method("table1", label) for label in paper.table1}
+    for method in ordered_methods(df[df.relight_env != ""].method):
         if method in listed:
             continue
-        row = {"Method": METHOD_LABELS.get(method, method), "method": method, **_relight_cells(df, method, None)}
+        row = {"Method": method_label(method), "method": method, **_relight_cells(df, method, None)}
         row["Time"] = fmt_time(method_time(df, method))
         row["Time (paper)"] = MISSING
         rows.append(row)
     return pd.DataFrame(rows)
-
-
-def _ordered_methods(methods) -> list[str]:
-    """Our methods in display order: the paper's main rows first, then the ablations."""
-    order = list(METHOD_LABELS)
-    return sorted(methods, key=lambda m: (order.index(m) if m in order else len(order), m))
 
 
 def _ordered_envs(df: pd.DataFrame, env_kinds: Mapping[str, str]) -> list[str]:
@@ -320,11 +464,71 @@ def _ordered_envs(df: pd.DataFrame, env_kinds: Mapping[str, str]) -> list[str]:
     return sorted(present, key=lambda e: (order.index(e) if e in order else len(order), e))
 
 
-def parameter_table(df: pd.DataFrame, env_kinds: Mapping[str, str] | None = None, digits: int = 3) -> pd.DataFrame:
+def _paper_column(env: str, env_kinds: Mapping[str, str], paper: PaperResults) -> str | None:
+    """The paper's environment of the same kind as ours, if it has one."""
+    return paper.environments.get(env_kinds.get(env, env))
+
+
+def _mse_rows(df: pd.DataFrame, paper: PaperResults, headers: Mapping[str, str],
+              env_kinds: Mapping[str, str], digits: int) -> list[dict[str, str]]:
+    """The MSE rows of Table 2: the paper's rows, each with ours below, then our other methods."""
+    paired = [(label, paper_method("table2", label)) for label in paper.table2]
+    listed = {method for _, method in paired}
+    extra = [(None, m) for m in ordered_methods(df[df.metric == "mse_average"].method) if m not in listed]
+    rows = []
+    for label, method in paired + extra:
+        name = f"{method_label(method)} ({method})" if method else label
+        if label is not None:
+            values = paper.table2[label]
+            row = {"Method": name, "source": "paper"}
+            for env, header in headers.items():
+                column = _paper_column(env, env_kinds, paper)
+                row[header] = _mse_cell(values.mse[column], 2) if column else MISSING
+            row["Avg."] = _mse_cell(values.mse[AVERAGE], 2)
+            row["Time"] = fmt_time(values.time_s)
+            rows.append(row)
+        row = {"Method": name, "source": "here"}
+        for env, header in headers.items():
+            parts = [mean_metric(df, method, p, env=env) for p in _MSE_METRICS]
+            row[header] = _ours(df, method, _mse_cell(parts, digits))
+        row["Avg."] = _ours(df, method, _mse_cell([mean_metric(df, method, p) for p in _MSE_METRICS], digits))
+        row["Time"] = _ours(df, method, fmt_time(method_time(df, method)))
+        rows.append(row)
+    return rows
+
+
+def _correlation_rows(df: pd.DataFrame, paper: PaperResults, headers: Mapping[str, str],
+                      env_kinds: Mapping[str, str]) -> list[dict[str, str]]:
+    """The error-entropy correlation rows of Table 2: the paper's, above the method it
+    correlates with, then every other method whose error ``metrics`` correlates."""
+    correlated = paper_method("table2", paper.correlation_with)
+    scored = [m for m, entry in METHODS.items() if entry.entropy_scored and m != correlated]
+    rows = []
+    for method in ([correlated] if correlated else []) + scored:
+        label = f"Error-entropy correlation ({method})"
+        if method == correlated:
+            row = {"Method": label, "source": "paper"}
+            for env, header in headers.items():
+                column = _paper_column(env, env_kinds, paper)
+                row[header] = fmt(paper.correlation[column], 2) if column else MISSING
+            row["Avg."] = fmt(paper.correlation[AVERAGE], 2)
+            row["Time"] = MISSING
+            rows.append(row)
+        row = {"Method": label, "source": "here"}
+        for env, header in headers.items():
+            row[header] = _ours(df, method, fmt(mean_metric(df, method, "pearson_entropy_error", env=env), 2))
+        row["Avg."] = _ours(df, method, fmt(mean_metric(df, method, "pearson_entropy_error"), 2))
+        row["Time"] = MISSING
+        rows.append(row)
+    return rows
+
+
+def parameter_table(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str] | None = None,
+                    digits: int = 3) -> pd.DataFrame:
     """Paper Table 2: parameter MSE per capture environment, with the error-entropy correlation.
 
     Cells read ``average (base colour, roughness, metallic)``, means over
-    objects. For each method the paper has, a ``paper`` row sits above our
+    objects. For each of the paper's rows, a ``paper`` row sits above our
     (``here``) row; its environment columns hold the paper's value for the
     environment of the same kind (``env_kinds``), e.g. Rural Road for sunny.
 
@@ -332,6 +536,7 @@ def parameter_table(df: pd.DataFrame, env_kinds: Mapping[str, str] | None = None
     ----------
     df : DataFrame
         Tidy metrics (:func:`check_tidy`).
+    paper : PaperResults
     env_kinds : mapping, optional
         Our environment name -> kind (``studio``, ``museum``, ``sunny``,
         ``overcast``); by default an environment's name is its kind.
@@ -344,57 +549,15 @@ def parameter_table(df: pd.DataFrame, env_kinds: Mapping[str, str] | None = None
         ``Method, source, <env> [paper: <name>] ..., Avg., Time``.
     """
     env_kinds = dict(env_kinds or {})
-    envs = _ordered_envs(df, env_kinds)
     headers = {}
-    for env in envs:
-        kind = env_kinds.get(env, env)
-        headers[env] = f"{env} [paper: {PAPER_ENV_NAMES[kind]}]" if kind in PAPER_ENV_NAMES else env
-    parts = ("mse_average", "mse_base_color", "mse_roughness", "mse_metallic")
-
-    methods = ["mitsuba", "freq", "spectrum"]
-    methods += [m for m in _ordered_methods(df[df.metric == "mse_average"].method.unique()) if m not in methods]
-    rows = []
-    for method in methods:
-        label = f"{METHOD_LABELS.get(method, method)} ({method})"
-        if method in PAPER_TABLE2_MSE:
-            paper = PAPER_TABLE2_MSE[method]
-            row = {"Method": label, "source": "paper"}
-            for env in envs:
-                kind = env_kinds.get(env, env)
-                row[headers[env]] = _mse_cell(paper[kind], 2) if kind in paper else MISSING
-            row["Avg."] = _mse_cell(paper["avg"], 2)
-            row["Time"] = fmt_time(PAPER_TABLE2_TIME_S[method])
-            rows.append(row)
-        row = {"Method": label, "source": "here"}
-        for env in envs:
-            row[headers[env]] = _ours(df, method, _mse_cell([mean_metric(df, method, p, env=env) for p in parts], digits))
-        row["Avg."] = _ours(df, method, _mse_cell([mean_metric(df, method, p) for p in parts], digits))
-        row["Time"] = _ours(df, method, fmt_time(method_time(df, method)))
-        rows.append(row)
-
-    # The correlation row: our entropy against Mitsuba's error (the paper's),
-    # then against our own error (not in the paper).
-    for method in ("mitsuba", "freq"):
-        label = f"Error-entropy correlation ({method})"
-        if method == "mitsuba":
-            row = {"Method": label, "source": "paper"}
-            for env in envs:
-                kind = env_kinds.get(env, env)
-                row[headers[env]] = fmt(PAPER_TABLE2_CORRELATION[kind], 2) if kind in PAPER_TABLE2_CORRELATION else MISSING
-            row["Avg."] = fmt(PAPER_TABLE2_CORRELATION["avg"], 2)
-            row["Time"] = MISSING
-            rows.append(row)
-        row = {"Method": label, "source": "here"}
-        for env in envs:
-            row[headers[env]] = _ours(df, method, fmt(mean_metric(df, method, "pearson_entropy_error", env=env), 2))
-        row["Avg."] = _ours(df, method, fmt(mean_metric(df, method, "pearson_entropy_error"), 2))
-        row["Time"] = MISSING
-        rows.append(row)
-    columns = ["Method", "source", *headers.values(), "Avg.", "Time"]
-    return pd.DataFrame(rows, columns=columns)
+    for env in _ordered_envs(df, env_kinds):
+        column = _paper_column(env, env_kinds, paper)
+        headers[env] = f"{env} [paper: {column}]" if column else env
+    rows = _mse_rows(df, paper, headers, env_kinds, digits) + _correlation_rows(df, paper, headers, env_kinds)
+    return pd.DataFrame(rows, columns=["Method", "source", *headers.values(), "Avg.", "Time"])
 
 
-def ablation_table(df: pd.DataFrame, digits: int = 3) -> pd.DataFrame:
+def ablation_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd.DataFrame:
     """Paper Table 4: the BRDF model with and without shadowing and masking.
 
     Our relighting metrics (synthetic, held-out environments) stand beside the
@@ -407,19 +570,19 @@ def ablation_table(df: pd.DataFrame, digits: int = 3) -> pd.DataFrame:
         ``Shadowing, Masking, method, PSNR-H, PSNR-H (paper), ..., MSE, MSE (paper), Time, Time (paper)``.
     """
     rows = []
-    for (shadowing, masking), paper in PAPER_TABLE4.items():
-        method = ABLATION_METHODS[(shadowing, masking)]
-        row = {"Shadowing": "yes" if shadowing else "no", "Masking": "yes" if masking else "no", "method": method}
-        row.update(_relight_cells(df, method, paper))
+    for values in paper.table4.values():
+        method = ablation_method(values.shadowing, values.masking)
+        row = {"Shadowing": "yes" if values.shadowing else "no", "Masking": "yes" if values.masking else "no",
+               "method": method, **_relight_cells(df, method, values.values)}
         row["MSE"] = _ours(df, method, fmt(mean_metric(df, method, "mse_average"), digits))
-        row["MSE (paper)"] = fmt(paper["mse"], 2)
+        row["MSE (paper)"] = fmt(values.values["mse"], 2)
         row["Time"] = _ours(df, method, fmt_time(method_time(df, method)))
-        row["Time (paper)"] = fmt_time(paper["time_s"])
+        row["Time (paper)"] = fmt_time(values.values["time_s"])
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def finetune_table(df: pd.DataFrame, digits: int = 3) -> pd.DataFrame:
+def finetune_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd.DataFrame:
     """Paper Table 5: a short Mitsuba fine-tuning pass from different initialisations.
 
     Our parameter MSE is added (the paper reports none for this table).
@@ -430,12 +593,12 @@ def finetune_table(df: pd.DataFrame, digits: int = 3) -> pd.DataFrame:
         ``Initialization, method, PSNR-H, PSNR-H (paper), ..., MSE, Total time, Total time (paper)``.
     """
     rows = []
-    for label, method in PAPER_TABLE5_METHODS.items():
-        paper = PAPER_TABLE5[label]
-        row = {"Initialization": label, "method": method or MISSING, **_relight_cells(df, method, paper)}
+    for label, values in paper.table5.items():
+        method = paper_method("table5", label)
+        row = {"Initialization": label, "method": method or MISSING, **_relight_cells(df, method, values)}
         row["MSE"] = _ours(df, method, fmt(mean_metric(df, method, "mse_average"), digits) if method else MISSING)
         row["Total time"] = _ours(df, method, fmt_time(method_time(df, method)) if method else MISSING)
-        row["Total time (paper)"] = fmt_time(paper["time_s"])
+        row["Total time (paper)"] = fmt_time(values["time_s"])
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -464,22 +627,179 @@ def _ran(df: pd.DataFrame, *methods: str) -> bool:
     return all((df.method == m).any() for m in methods)
 
 
-def claims(df: pd.DataFrame) -> pd.DataFrame:
+def _mse(df: pd.DataFrame, method: str) -> float | None:
+    return mean_metric(df, method, "mse_average")
+
+
+def _psnr(df: pd.DataFrame, method: str) -> float | None:
+    return mean_metric(df, method, "psnr_h")
+
+
+def _speed_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    mitsuba, ours = paper.table2[MITSUBA].time_s, paper.table2[OURS].time_s
+    orb = paper.table1[MITSUBA]["time_s"] / paper.table1[OURS]["time_s"]
+    ratio = speed_ratio(df, "freq") if _ran(df, "freq", "mitsuba") else None
+    return Claim(
+        "Ours (freq) fits much faster than Mitsuba",
+        f"{mitsuba / ours:.1f}x ({fmt_paper(mitsuba, 2)} s vs {fmt_paper(ours, 2)} s, Table 2); "
+        f"{orb:.1f}x on Stanford-ORB (Table 1)",
+        MISSING if ratio is None else
+        f"{ratio:.1f}x ({fmt_time(method_time(df, 'mitsuba'))} vs {fmt_time(method_time(df, 'freq'))})",
+        _verdict(None if ratio is None else ratio > 1.0),
+        "speed ratio time(mitsuba) / time(freq) > 1",
+    )
+
+
+def _speed_order_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    times = [method_time(df, m) for m in ("spectrum", "freq", "mitsuba")]
+    known = None not in times
+    return Claim(
+        "Spectrum-only is faster than ours, which is faster than Mitsuba",
+        " < ".join(f"{fmt_paper(paper.table2[row].time_s, 2)} s" for row in (SPECTRUM, OURS, MITSUBA)) + " (Table 2)",
+        " < ".join(fmt_time(t) for t in times) if known else MISSING,
+        _verdict(times[0] < times[1] < times[2] if known else None),
+        "time(spectrum) < time(freq) < time(mitsuba), mean per capture",
+    )
+
+
+def _average_mse(paper: PaperResults, row: str) -> str:
+    return fmt_paper(paper.table2[row].mse[AVERAGE][0], 2)
+
+
+def _accuracy_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    ours, mitsuba = _mse(df, "freq"), _mse(df, "mitsuba")
+    known = ours is not None and mitsuba is not None
+    tolerance = paper.criteria.accuracy_tolerance_mse
+    return Claim(
+        "Parameter accuracy comparable to Mitsuba",
+        f"MSE {_average_mse(paper, OURS)} vs {_average_mse(paper, MITSUBA)} (Table 2)",
+        f"MSE {fmt(ours)} vs {fmt(mitsuba)}" if known else MISSING,
+        _verdict(ours - mitsuba <= tolerance if known else None),
+        f"MSE(freq) - MSE(mitsuba) <= {tolerance}",
+    )
+
+
+def _relight_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    ours, mitsuba = _psnr(df, "freq"), _psnr(df, "mitsuba")
+    known = ours is not None and mitsuba is not None
+    tolerance = paper.criteria.relight_tolerance_db
+    return Claim(
+        "Relighting on par with Mitsuba",
+        f"PSNR-H {fmt_paper(paper.table1[OURS]['psnr_h'], 2)} vs {fmt_paper(paper.table1[MITSUBA]['psnr_h'], 2)} dB "
+        "(Table 1)",
+        f"PSNR-H {fmt(ours, 2)} vs {fmt(mitsuba, 2)} dB" if known else MISSING,
+        _verdict(ours >= mitsuba - tolerance if known else None),
+        f"PSNR-H(freq) >= PSNR-H(mitsuba) - {tolerance} dB",
+    )
+
+
+def _spectrum_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    ours, spectrum = _mse(df, "freq"), _mse(df, "spectrum")
+    known = spectrum is not None and ours is not None
+    return Claim(
+        "The full model is more accurate than the spectrum-only estimate",
+        f"MSE {_average_mse(paper, OURS)} vs {_average_mse(paper, SPECTRUM)} (Table 2)",
+        f"MSE {fmt(ours)} vs {fmt(spectrum)}" if known else MISSING,
+        _verdict(ours < spectrum if known else None),
+        "MSE(freq) < MSE(spectrum)",
+    )
+
+
+# The Table 4 rows by the words of the claim: (shadowing, masking).
+_ABLATION_PAIRS = {"neither": (False, False), "shadowing": (True, False), "masking": (False, True),
+                   "both": (True, True)}
+
+
+def _ablation_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    names = {word: ablation_method(*pair) for word, pair in _ABLATION_PAIRS.items()}
+    mse = {word: _mse(df, name) for word, name in names.items()}
+    known = None not in mse.values()
+    if known:
+        ordered = (mse["both"] < min(mse["shadowing"], mse["masking"])
+                   and max(mse["shadowing"], mse["masking"]) < mse["neither"])
+    words = ", ".join(f"{word} {fmt_paper(paper.ablation_row(*pair).values['mse'], 2)}"
+                      for word, pair in _ABLATION_PAIRS.items())
+    return Claim(
+        "Shadowing and masking each improve on Ramamoorthi-Hanrahan; both together are best",
+        f"MSE {words} (Table 4)",
+        "MSE " + ", ".join(f"{word} {fmt(value)}" for word, value in mse.items()) if known else MISSING,
+        _verdict(ordered if known else None),
+        f"MSE({names['both']}) < MSE({names['masking']}), MSE({names['shadowing']}) < MSE({names['neither']})",
+    )
+
+
+def _finetune_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    tuned, ours = _mse(df, "freq+mitsuba"), _mse(df, "freq")
+    known = tuned is not None and ours is not None
+    extra = ""
+    if _psnr(df, "freq+mitsuba") is not None and _psnr(df, "freq") is not None:
+        extra = f"; PSNR-H {fmt(_psnr(df, 'freq+mitsuba'), 2)} vs {fmt(_psnr(df, 'freq'), 2)} dB"
+    return Claim(
+        "Fine-tuning our result with Mitsuba improves on ours",
+        f"PSNR-H {fmt_paper(paper.table5[FINETUNED]['psnr_h'], 2)} vs {fmt_paper(paper.table1[OURS]['psnr_h'], 2)} dB "
+        "(Tables 1, 5)",
+        f"MSE {fmt(tuned)} vs {fmt(ours)}{extra}" if known else MISSING,
+        _verdict(tuned < ours if known else None),
+        "MSE(freq+mitsuba) < MSE(freq)",
+    )
+
+
+def _finetune_time_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    psnr = {m: _psnr(df, m) for m in ("freq+mitsuba", "mitsuba")}
+    time = {m: method_time(df, m) for m in ("freq+mitsuba", "mitsuba")}
+    known = None not in (*psnr.values(), *time.values())
+    tuned, full = paper.table5[FINETUNED], paper.table5[MITSUBA_FULL]
+    divisor = paper.criteria.finetune_time_divisor
+    return Claim(
+        "Ours + Mitsuba beats Mitsuba alone in less than a third of its time",
+        f"PSNR-H {fmt_paper(tuned['psnr_h'] - full['psnr_h'], 2, sign=True)} dB, "
+        f"{fmt_paper(tuned['time_s'], 2)} s vs {fmt_paper(full['time_s'], 2)} s (Table 5)",
+        (f"PSNR-H {psnr['freq+mitsuba'] - psnr['mitsuba']:+.2f} dB, "
+         f"{fmt_time(time['freq+mitsuba'])} vs {fmt_time(time['mitsuba'])}") if known else MISSING,
+        _verdict(psnr["freq+mitsuba"] > psnr["mitsuba"]
+                 and time["freq+mitsuba"] < time["mitsuba"] / divisor if known else None),
+        f"PSNR-H(freq+mitsuba) > PSNR-H(mitsuba) and time(freq+mitsuba) < time(mitsuba) / {divisor:g}",
+    )
+
+
+def _entropy_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    r_mitsuba = mean_metric(df, "mitsuba", "pearson_entropy_error")
+    r_freq = mean_metric(df, "freq", "pearson_entropy_error")
+    ours = [f"{label} {fmt(r, 2)}" for label, r in (("Mitsuba", r_mitsuba), ("freq", r_freq)) if r is not None]
+    per_env = [r for env, r in paper.correlation.items() if env != AVERAGE]
+    return Claim(
+        "Our entropy correlates positively with Mitsuba's per-texel error",
+        f"Pearson {fmt_paper(min(per_env), 2)} to {fmt_paper(max(per_env), 2)}, "
+        f"mean {fmt_paper(paper.correlation[AVERAGE], 2)} (Table 2)",
+        "; ".join(ours) if ours else MISSING,
+        _verdict(None if r_mitsuba is None else r_mitsuba > 0.0),
+        "mean Pearson(entropy, Mitsuba's squared parameter error) > 0",
+    )
+
+
+_CLAIMS: tuple[Callable[[pd.DataFrame, PaperResults], Claim], ...] = (
+    _speed_claim, _speed_order_claim, _accuracy_claim, _relight_claim, _spectrum_claim,
+    _ablation_claim, _finetune_claim, _finetune_time_claim, _entropy_claim,
+)
+
+
+def claims(df: pd.DataFrame, paper: PaperResults) -> pd.DataFrame:
     """The paper's headline claims, its values, ours, and whether each holds here.
 
-    Criteria (each a mean over the captures in ``df``):
+    Criteria (each a mean over the captures in ``df``; tolerances from ``paper.criteria``):
 
     1. Speed: freq is faster than Mitsuba (speed ratio > 1).
     2. Speed order: time(spectrum) < time(freq) < time(mitsuba).
-    3. Accuracy: MSE(freq) - MSE(mitsuba) <= ACCURACY_TOLERANCE_MSE.
-    4. Relighting: PSNR-H(freq) >= PSNR-H(mitsuba) - RELIGHT_TOLERANCE_DB.
+    3. Accuracy: MSE(freq) - MSE(mitsuba) <= accuracy_tolerance_mse.
+    4. Relighting: PSNR-H(freq) >= PSNR-H(mitsuba) - relight_tolerance_db.
     5. Spectrum-only is less accurate than the full model: MSE(spectrum) > MSE(freq).
-    6. Ablation order: MSE(freq) < min(MSE(freq_noshadow), MSE(freq_nomask)) and
-       max(MSE(freq_noshadow), MSE(freq_nomask)) < MSE(rh2001).
+    6. Ablation order (the Table 4 methods, :func:`freqbrdf.methods.ablation_method`):
+       MSE(both) < min(MSE(shadowing only), MSE(masking only)) and
+       max(MSE(shadowing only), MSE(masking only)) < MSE(neither).
     7. Fine-tuning improves ours: MSE(freq+mitsuba) < MSE(freq).
     8. Fine-tuning beats Mitsuba alone, in less than a third of its time:
        PSNR-H(freq+mitsuba) > PSNR-H(mitsuba) and
-       time(freq+mitsuba) < FINETUNE_TIME_FRACTION * time(mitsuba).
+       time(freq+mitsuba) < time(mitsuba) / finetune_time_divisor.
     9. Entropy predicts Mitsuba's error: mean Pearson(entropy, squared error) > 0.
 
     A claim whose methods did not run (or lack the metric) is ``not run``.
@@ -488,111 +808,16 @@ def claims(df: pd.DataFrame) -> pd.DataFrame:
     ----------
     df : DataFrame
         Tidy metrics (:func:`check_tidy`).
+    paper : PaperResults
+        The paper's numbers, quoted in the ``paper`` column.
 
     Returns
     -------
     DataFrame of str
         Columns ``claim, paper, ours, holds, criterion``.
     """
-    mse = {m: mean_metric(df, m, "mse_average") for m in
-           ("mitsuba", "freq", "spectrum", "freq_noshadow", "freq_nomask", "rh2001", "freq+mitsuba")}
-    psnr = {m: mean_metric(df, m, "psnr_h") for m in ("mitsuba", "freq", "freq+mitsuba")}
-    time = {m: method_time(df, m) for m in ("mitsuba", "freq", "spectrum", "freq+mitsuba")}
-    out: list[Claim] = []
-
-    ratio = speed_ratio(df, "freq") if _ran(df, "freq", "mitsuba") else None
-    out.append(Claim(
-        "Ours (freq) fits much faster than Mitsuba",
-        "33.5x (105.19 s vs 3.14 s, Table 2); 13.3x on Stanford-ORB (Table 1)",
-        MISSING if ratio is None else f"{ratio:.1f}x ({fmt_time(time['mitsuba'])} vs {fmt_time(time['freq'])})",
-        _verdict(None if ratio is None else ratio > 1.0),
-        "speed ratio time(mitsuba) / time(freq) > 1",
-    ))
-
-    times = [time["spectrum"], time["freq"], time["mitsuba"]]
-    known = None not in times
-    out.append(Claim(
-        "Spectrum-only is faster than ours, which is faster than Mitsuba",
-        "1.20 s < 3.14 s < 105.19 s (Table 2)",
-        " < ".join(fmt_time(t) for t in times) if known else MISSING,
-        _verdict(times[0] < times[1] < times[2] if known else None),
-        "time(spectrum) < time(freq) < time(mitsuba), mean per capture",
-    ))
-
-    known = mse["freq"] is not None and mse["mitsuba"] is not None
-    out.append(Claim(
-        "Parameter accuracy comparable to Mitsuba",
-        "MSE 0.06 vs 0.04 (Table 2)",
-        f"MSE {fmt(mse['freq'])} vs {fmt(mse['mitsuba'])}" if known else MISSING,
-        _verdict(mse["freq"] - mse["mitsuba"] <= ACCURACY_TOLERANCE_MSE if known else None),
-        f"MSE(freq) - MSE(mitsuba) <= {ACCURACY_TOLERANCE_MSE}",
-    ))
-
-    known = psnr["freq"] is not None and psnr["mitsuba"] is not None
-    out.append(Claim(
-        "Relighting on par with Mitsuba",
-        "PSNR-H 26.68 vs 26.60 dB (Table 1)",
-        f"PSNR-H {fmt(psnr['freq'], 2)} vs {fmt(psnr['mitsuba'], 2)} dB" if known else MISSING,
-        _verdict(psnr["freq"] >= psnr["mitsuba"] - RELIGHT_TOLERANCE_DB if known else None),
-        f"PSNR-H(freq) >= PSNR-H(mitsuba) - {RELIGHT_TOLERANCE_DB} dB",
-    ))
-
-    known = mse["spectrum"] is not None and mse["freq"] is not None
-    out.append(Claim(
-        "The full model is more accurate than the spectrum-only estimate",
-        "MSE 0.06 vs 0.21 (Table 2)",
-        f"MSE {fmt(mse['freq'])} vs {fmt(mse['spectrum'])}" if known else MISSING,
-        _verdict(mse["freq"] < mse["spectrum"] if known else None),
-        "MSE(freq) < MSE(spectrum)",
-    ))
-
-    ablation = [mse[m] for m in ("rh2001", "freq_nomask", "freq_noshadow", "freq")]
-    known = None not in ablation
-    if known:
-        neither, shadow_only, mask_only, both = ablation
-        ordered = both < min(shadow_only, mask_only) and max(shadow_only, mask_only) < neither
-    out.append(Claim(
-        "Shadowing and masking each improve on Ramamoorthi-Hanrahan; both together are best",
-        "MSE neither 0.16, shadowing 0.14, masking 0.13, both 0.12 (Table 4)",
-        "MSE neither {}, shadowing {}, masking {}, both {}".format(*map(fmt, ablation)) if known else MISSING,
-        _verdict(ordered if known else None),
-        "MSE(freq) < MSE(freq_noshadow), MSE(freq_nomask) < MSE(rh2001)",
-    ))
-
-    known = mse["freq+mitsuba"] is not None and mse["freq"] is not None
-    extra = ""
-    if psnr["freq+mitsuba"] is not None and psnr["freq"] is not None:
-        extra = f"; PSNR-H {fmt(psnr['freq+mitsuba'], 2)} vs {fmt(psnr['freq'], 2)} dB"
-    out.append(Claim(
-        "Fine-tuning our result with Mitsuba improves on ours",
-        "PSNR-H 27.04 vs 26.68 dB (Tables 1, 5)",
-        f"MSE {fmt(mse['freq+mitsuba'])} vs {fmt(mse['freq'])}{extra}" if known else MISSING,
-        _verdict(mse["freq+mitsuba"] < mse["freq"] if known else None),
-        "MSE(freq+mitsuba) < MSE(freq)",
-    ))
-
-    known = None not in (psnr["freq+mitsuba"], psnr["mitsuba"], time["freq+mitsuba"], time["mitsuba"])
-    out.append(Claim(
-        "Ours + Mitsuba beats Mitsuba alone in less than a third of its time",
-        "PSNR-H +0.44 dB, 19.87 s vs 69.96 s (Table 5)",
-        (f"PSNR-H {psnr['freq+mitsuba'] - psnr['mitsuba']:+.2f} dB, "
-         f"{fmt_time(time['freq+mitsuba'])} vs {fmt_time(time['mitsuba'])}") if known else MISSING,
-        _verdict(psnr["freq+mitsuba"] > psnr["mitsuba"]
-                 and time["freq+mitsuba"] < FINETUNE_TIME_FRACTION * time["mitsuba"] if known else None),
-        "PSNR-H(freq+mitsuba) > PSNR-H(mitsuba) and time(freq+mitsuba) < time(mitsuba) / 3",
-    ))
-
-    r_mitsuba = mean_metric(df, "mitsuba", "pearson_entropy_error")
-    r_freq = mean_metric(df, "freq", "pearson_entropy_error")
-    ours = [f"{label} {fmt(r, 2)}" for label, r in (("Mitsuba", r_mitsuba), ("freq", r_freq)) if r is not None]
-    out.append(Claim(
-        "Our entropy correlates positively with Mitsuba's per-texel error",
-        "Pearson 0.13 to 0.21, mean 0.16 (Table 2)",
-        "; ".join(ours) if ours else MISSING,
-        _verdict(None if r_mitsuba is None else r_mitsuba > 0.0),
-        "mean Pearson(entropy, Mitsuba's squared parameter error) > 0",
-    ))
-    return pd.DataFrame([asdict(c) for c in out], columns=["claim", "paper", "ours", "holds", "criterion"])
+    rows = [asdict(claim(df, paper)) for claim in _CLAIMS]
+    return pd.DataFrame(rows, columns=["claim", "paper", "ours", "holds", "criterion"])
 
 
 # ---------------------------------------------------------------------------
@@ -620,28 +845,17 @@ def _right_aligned(table: pd.DataFrame) -> list[bool]:
 
 
 def to_markdown(table: pd.DataFrame, title: str | None = None, caption: str | None = None) -> str:
-    """A GitHub-flavoured Markdown pipe table (with optional heading and caption).
+    """A GitHub-flavoured Markdown pipe table, with a level-3 heading ``title`` and a caption paragraph.
 
-    Parameters
-    ----------
-    table : DataFrame
-        Cells are converted with ``str``; ``|`` is escaped.
-    title : str, optional
-        Level-3 heading above the table.
-    caption : str, optional
-        Paragraph below the table.
+    Cells are converted with ``str``; ``|`` is escaped.
     """
 
-    def cell(value) -> str:
-        return str(value).replace("|", r"\|").replace("\n", " ")
+    def line(cells: Iterable[object]) -> str:
+        return "| " + " | ".join(str(c).replace("|", r"\|").replace("\n", " ") for c in cells) + " |"
 
-    lines = []
-    if title:
-        lines += [f"### {title}", ""]
-    lines.append("| " + " | ".join(cell(c) for c in table.columns) + " |")
-    lines.append("|" + "|".join("---:" if right else "---" for right in _right_aligned(table)) + "|")
-    for row in table.itertuples(index=False):
-        lines.append("| " + " | ".join(cell(v) for v in row) + " |")
+    rule = "|" + "|".join("---:" if right else "---" for right in _right_aligned(table)) + "|"
+    lines = [f"### {title}", ""] if title else []
+    lines += [line(table.columns), rule, *(line(row) for row in table.itertuples(index=False))]
     if caption:
         lines += ["", caption]
     return "\n".join(lines) + "\n"
@@ -660,6 +874,16 @@ def latex_escape(text: str) -> str:
     return "".join(_LATEX_SPECIAL.get(ch, ch) for ch in str(text))
 
 
+def _styler(table: pd.DataFrame, escape: Callable[[str], str]) -> Styler:
+    """A Styler of the display strings, cells and headers escaped by ``escape``, without the index."""
+    # Our own escapes rather than Styler's escape="latex"/"html": pandas' LaTeX
+    # one leaves < and > as they are (see _LATEX_SPECIAL).
+    return (Styler(table, cell_ids=False)
+            .hide(axis="index")
+            .format(lambda value: escape(str(value)))
+            .format_index(lambda value: escape(str(value)), axis=1))
+
+
 def to_latex(table: pd.DataFrame, caption: str | None = None, label: str | None = None) -> str:
     """A LaTeX ``table`` with a booktabs ``tabular`` (needs ``\\usepackage{booktabs}``).
 
@@ -668,31 +892,39 @@ def to_latex(table: pd.DataFrame, caption: str | None = None, label: str | None 
     table : DataFrame
         Cells are converted with ``str`` and escaped.
     caption, label : str, optional
-        ``\\caption`` and ``\\label`` of the float.
+        ``\\caption`` (escaped) and ``\\label`` of the float.
     """
     spec = "".join("r" if right else "l" for right in _right_aligned(table))
-    lines = [r"\begin{table}[ht]", r"\centering", r"\small", rf"\begin{{tabular}}{{{spec}}}", r"\toprule"]
-    lines.append(" & ".join(latex_escape(c) for c in table.columns) + r" \\")
-    lines.append(r"\midrule")
-    for row in table.itertuples(index=False):
-        lines.append(" & ".join(latex_escape(v) for v in row) + r" \\")
-    lines += [r"\bottomrule", r"\end{tabular}"]
-    if caption:
-        lines.append(rf"\caption{{{latex_escape(caption)}}}")
-    if label:
-        lines.append(rf"\label{{{label}}}")
-    lines.append(r"\end{table}")
-    return "\n".join(lines) + "\n"
+    # Styler writes table styles it does not know as commands: this one is \small.
+    styler = _styler(table, latex_escape).set_table_styles([{"selector": "small", "props": ":;"}])
+    return styler.to_latex(column_format=spec, position="ht", position_float="centering", hrules=True,
+                           label=label, caption=latex_escape(caption) if caption else None, environment="table")
+
+
+def _cell_classes(table: pd.DataFrame, verdicts: str | None) -> pd.DataFrame:
+    """CSS classes of each cell: ``notrun``, the verdict (``yes``/``no``) in column ``verdicts``, ``num``."""
+    right = dict(zip(table.columns, _right_aligned(table)))
+
+    def classes(column: str, text: str) -> str:
+        verdict = text if column == verdicts and text in ("yes", "no") else ""
+        return " ".join(c for c in ("notrun" if text == NOT_RUN else "", verdict, "num" if right[column] else "") if c)
+
+    return pd.DataFrame({c: [classes(c, str(v)) for v in table[c]] for c in table.columns}, index=table.index)
+
+
+# Styler writes a <style> element before its table even with no styles (ours
+# are classes, styled by the page's head); <style> in <body> is not valid HTML.
+_EMPTY_STYLE = re.compile(r'<style type="text/css">\s*</style>\s*')
 
 
 def to_html(table: pd.DataFrame, title: str | None = None, caption: str | None = None,
             verdicts: str | None = None) -> str:
-    """An HTML fragment: heading, ``<table>`` and caption paragraph.
+    """An HTML fragment: heading, ``<table>`` and caption paragraph (styled by :data:`HTML_STYLE`).
 
     Parameters
     ----------
     table : DataFrame
-        Cells are converted with ``str`` and escaped.
+        Cells are converted with ``str`` and escaped; numeric columns get the class ``num``.
     title, caption : str, optional
         ``<h2>`` above and a paragraph below the table.
     verdicts : str, optional
@@ -700,27 +932,13 @@ def to_html(table: pd.DataFrame, title: str | None = None, caption: str | None =
         cells get the classes ``yes``, ``no`` and ``notrun``, for colour.
         ``not run`` cells elsewhere get ``notrun`` too (greyed).
     """
-    right = _right_aligned(table)
-    verdict_index = list(table.columns).index(verdicts) if verdicts is not None else -1
-    parts = []
-    if title:
-        parts.append(f"<h2>{html.escape(title)}</h2>")
-    parts.append("<table>")
-    parts.append("<thead><tr>" + "".join(f"<th>{html.escape(str(c))}</th>" for c in table.columns) + "</tr></thead>")
-    parts.append("<tbody>")
-    for row in table.itertuples(index=False):
-        cells = []
-        for k, (value, is_right) in enumerate(zip(row, right)):
-            text = str(value)
-            classes = ["notrun" if text == NOT_RUN else ""]
-            if k == verdict_index:
-                classes.append({"yes": "yes", "no": "no"}.get(text, ""))
-            if is_right:
-                classes.append("num")
-            cls = " ".join(c for c in classes if c)
-            cells.append(f'<td class="{cls}">{html.escape(text)}</td>' if cls else f"<td>{html.escape(text)}</td>")
-        parts.append("<tr>" + "".join(cells) + "</tr>")
-    parts.append("</tbody></table>")
+    table = table.reset_index(drop=True)  # set_td_classes aligns on a unique index
+    styler = _styler(table, html.escape).set_td_classes(_cell_classes(table, verdicts))
+    # Element ids must differ between the tables of a page and stay put from run to run.
+    content = f"{title}\n{table.to_csv()}"
+    uuid = f"{zlib.crc32(content.encode()):08x}"
+    parts = [f"<h2>{html.escape(title)}</h2>"] if title else []
+    parts.append(_EMPTY_STYLE.sub("", styler.to_html(table_uuid=uuid)).strip())
     if caption:
         parts.append(f'<p class="caption">{html.escape(caption)}</p>')
     return "\n".join(parts) + "\n"
@@ -754,13 +972,15 @@ class Summary:
     table: pd.DataFrame
 
 
-def summaries(df: pd.DataFrame, env_kinds: Mapping[str, str] | None = None) -> list[Summary]:
+def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str] | None = None) -> list[Summary]:
     """Every summary table of the report, in the paper's order, then the claims.
 
     Parameters
     ----------
     df : DataFrame
         Tidy metrics (:func:`check_tidy`), one pose source.
+    paper : PaperResults
+        The paper's numbers (:func:`read_paper_results`).
     env_kinds : mapping, optional
         Our environment name -> kind, to place the paper's environments (:func:`parameter_table`).
 
@@ -781,26 +1001,26 @@ def summaries(df: pd.DataFrame, env_kinds: Mapping[str, str] | None = None) -> l
                 "against ground-truth renders under environments not seen in training, mean over test views. "
                 "The paper's numbers are on Stanford-ORB photographs; ours on the synthetic benchmark. "
                 "LPIPS is not computed (no network weights offline). " + scope,
-                relighting_table(df)),
+                relighting_table(df, paper)),
         Summary("table2_parameters", "Table 2: parameter MSE per capture environment",
                 "Average (base colour, roughness, metallic) MSE against the ground-truth textures over "
                 "observed texels; 'paper' rows give the paper's value for the environment of the same kind. "
                 "Error-entropy correlation: Pearson correlation between our entropy and the method's "
                 "per-texel squared error (the paper correlates with Mitsuba's). " + scope,
-                parameter_table(df, env_kinds)),
+                parameter_table(df, paper, env_kinds)),
         Summary("table4_ablation", "Table 4: ablation of shadowing and masking",
                 "Our model with and without the shadowing G1(theta_i) and masking G1(theta_o) terms; "
                 "rh2001 has neither (Ramamoorthi and Hanrahan 2001). The paper's relighting numbers are on "
                 "Stanford-ORB and its MSE and time on its synthetic set, both without cosine weighting of "
                 "the samples; ours use cosine weighting. " + scope,
-                ablation_table(df)),
+                ablation_table(df, paper)),
         Summary("table5_finetune", "Table 5: fine-tuning with Mitsuba",
                 "A short Mitsuba optimisation started from our textures (freq+mitsuba) against Mitsuba's "
                 "full optimisation from a constant (mitsuba) and our textures alone (freq). Total time "
                 "includes the initialisation. Rows without a method of ours are not in this pipeline. " + scope,
-                finetune_table(df)),
+                finetune_table(df, paper)),
         Summary("claims", "Claims of the paper, checked on this run",
                 "holds: 'yes' or 'no' by the stated criterion on this run's means; 'not run' when a method "
                 "it needs is not in the configuration's methods or produced no such metric. " + scope,
-                claims(df)),
+                claims(df, paper)),
     ]

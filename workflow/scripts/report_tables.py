@@ -5,7 +5,7 @@ import pandas as pd
 
 from freqbrdf.io import atomic_path
 from freqbrdf.logs import run_script
-from freqbrdf.tables import check_tidy, html_page, summaries, to_html, to_latex, to_markdown
+from freqbrdf.tables import check_tidy, html_page, read_paper_results, summaries, to_html, to_latex, to_markdown
 
 
 def write_text(path: str, text: str) -> None:
@@ -19,7 +19,7 @@ def main(smk, log):
     metrics = metrics[metrics.poses == smk.params.poses]
     if metrics.empty:
         raise ValueError(f"{smk.input.metrics}: no rows with poses == {smk.params.poses!r}")
-    tables = summaries(metrics, smk.params.env_kinds)
+    tables = summaries(metrics, read_paper_results(smk.input.paper), smk.params.env_kinds)
     for summary in tables:
         write_text(smk.output[f"{summary.key}_md"], to_markdown(summary.table, summary.title, summary.caption))
         write_text(smk.output[f"{summary.key}_tex"],
