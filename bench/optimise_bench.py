@@ -42,6 +42,9 @@ from pathlib import Path
 
 import numpy as np
 
+from freqbrdf.brdf import TEXTURES
+from freqbrdf.methods import METHODS
+
 REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / "bench" / "out"
 RESULTS = REPO / "results"
@@ -52,8 +55,7 @@ TIMING_CASES = {
     "rh2001_w2": ("rh2001", 2),
     "freq_w1": ("freq", 1),
 }
-ACCURACY_METHODS = ("freq", "freq_noshadow", "freq_nomask", "rh2001")
-GROUPS = ("base_color", "roughness", "metallic")
+ACCURACY_METHODS = tuple(m for m, entry in METHODS.items() if "table4" in entry.paper_rows)  # the ablation
 LMAX = 20
 # label: OptimiseSettings overrides of a sweep run (the rest: the defaults of config/config.yaml)
 DEFAULTS = {"iterations": 150, "lr": 0.02, "tv_weight": 1e-3, "refit_every": 50}
@@ -76,23 +78,19 @@ SWEEP = {
 
 
 def load_capture(capture: str) -> dict | None:
-    """Observations, texels and irradiance of ``object/env`` (gt poses), or None if absent."""
+    """Observations and irradiance of ``object/env`` (gt poses), or None if absent."""
+    from freqbrdf.artefacts import read_observations
     from freqbrdf.io import read_exr
     from freqbrdf.light import irradiance
 
     obj, env = capture.split("/")
-    obs = RESULTS / "observations" / obj / env / "gt"
+    directory = RESULTS / "observations" / obj / env / "gt"
     envmap = RESULTS / "envs" / f"{env}.exr"
-    names = ("radiance", "weight", "wo_local")
-    if not (all((obs / f"{n}.npy").is_file() for n in names) and (obs / "texels.npz").is_file() and envmap.is_file()):
+    if not ((directory / "views.json").is_file() and envmap.is_file()):
         return None
-    data = {n: np.load(obs / f"{n}.npy") for n in names}
-    texels = np.load(obs / "texels.npz")
-    data["texel"] = texels["texel"]
-    data["resolution"] = int(texels["resolution"])
-    data["frame"] = np.stack([texels["tangent"], texels["bitangent"], texels["normal"]], axis=1)
-    data["envmap"] = read_exr(envmap)
-    data["irradiance"] = irradiance(data["envmap"], texels["normal"])
+    obs = read_observations(directory)
+    data = {"obs": obs, "weight": obs.weight, "texel": obs.texels.texel, "envmap": read_exr(envmap)}
+    data["irradiance"] = irradiance(data["envmap"], obs.texels.normal)
     data["source"] = f"results/observations/{capture}/gt"
     return data
 
@@ -101,7 +99,8 @@ def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> di
     """Observations shaped like the real ones: random normals, 24 distant cameras on the
     upper hemisphere, a pair observed when the texel faces the camera (10% dropped as occluded),
     a few soft lamps over a sky gradient, radiance of a diffuse plus a glossy lobe."""
-    from freqbrdf import sh, spectral
+    from freqbrdf import sh, shfit
+    from freqbrdf.artefacts import Observations
 
     rng = np.random.default_rng(seed)
     n_tex = n_side * n_side
@@ -113,7 +112,7 @@ def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> di
     frame = np.stack([tangent, np.cross(normal, tangent), normal], axis=1)
     wo = np.einsum("tij,kj->tki", frame, sh.fibonacci_hemisphere(n_views))
     weight = np.clip(wo[..., 2], 0.0, None) * (rng.random((n_tex, n_views)) > 0.1)
-    wr = np.einsum("tji,tkj->tki", frame, spectral.mirror_directions(wo))
+    wr = np.einsum("tji,tkj->tki", frame, shfit.mirror_directions(wo))
     lamps = rng.normal(size=(4, 3))
     lamps /= np.linalg.norm(lamps, axis=1, keepdims=True)
     colours = rng.uniform(1, 5, (4, 3))
@@ -127,22 +126,18 @@ def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> di
     kd = rng.uniform(0, 1, (n_tex, 1, 3))
     radiance = (0.5 * kd + 0.3 * light(wr)) * (weight > 0)[..., None]
     f32 = np.float32
-    return {
-        "radiance": radiance.astype(f32), "weight": weight.astype(f32), "wo_local": wo.astype(f32),
-        "frame": frame, "envmap": env, "texel": np.arange(n_tex), "resolution": n_side,
-        "irradiance": irradiance(env, normal), "source": "synthetic",
-    }
+    obs = Observations.from_arrays(radiance.astype(f32), weight.astype(f32), wo.astype(f32), frame, np.arange(n_tex),
+                                   n_side)
+    return {"obs": obs, "weight": obs.weight, "texel": obs.texels.texel, "envmap": env,
+            "irradiance": irradiance(env, normal), "source": "synthetic"}
 
 
 def optimise_capture(data: dict, method: str, init: dict | None, lmax: int = LMAX, **settings) -> tuple[dict, np.ndarray]:
     from freqbrdf.light import light_quadrature
     from freqbrdf.optimise import OptimiseSettings, optimise
 
-    return optimise(
-        data["radiance"], data["weight"], data["wo_local"], data["frame"], data["irradiance"],
-        data["texel"], data["resolution"], light_quadrature(data["envmap"], lmax), init, method,
-        OptimiseSettings(**settings),
-    )
+    return optimise(data["obs"], data["irradiance"], light_quadrature(data["envmap"], lmax), init, method,
+                    OptimiseSettings(**settings))
 
 
 def run_timing(name: str) -> dict:
@@ -178,24 +173,19 @@ def run_timing(name: str) -> dict:
 
 def read_textures(directory: Path) -> dict[str, np.ndarray] | None:
     """``base_color`` (R*R, 3), ``roughness``, ``metallic`` (R*R,) of a texture directory, flat ``i * R + j``."""
-    from freqbrdf.io import read_exr
+    from freqbrdf.artefacts import read_svbrdf
 
-    if not all((directory / f"{g}.exr").is_file() for g in GROUPS):
+    if not all((directory / f"{g}.exr").is_file() for g in TEXTURES):
         return None
-    out = {}
-    for g in GROUPS:
-        img = read_exr(directory / f"{g}.exr").astype(np.float64)
-        out[g] = img.reshape(img.shape[0] * img.shape[1], -1)
-        if g != "base_color":
-            out[g] = out[g][:, 0]
-    return out
+    svbrdf = read_svbrdf(directory)
+    return {g: v.astype(np.float64) for g, v in svbrdf.at_texels(np.arange(svbrdf.resolution**2)).items()}
 
 
 def mse_row(label: str, capture: str, est: dict, truth: dict, observed: np.ndarray, seconds: float | str) -> dict:
     row = {"capture": capture, "estimate": label}
-    for g in GROUPS:
+    for g in TEXTURES:
         row[g] = float(np.mean((est[g][observed] - truth[g][observed]) ** 2))
-    row["mean"] = float(np.mean([row[g] for g in GROUPS]))
+    row["mean"] = float(np.mean([row[g] for g in TEXTURES]))
     row = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()}
     row["seconds"] = seconds
     return row
@@ -249,7 +239,7 @@ def run_sweep(captures: list[str], labels: list[str] | None = None) -> list[dict
             est, _ = optimise_capture(data, "freq", None, workers=2, **(DEFAULTS | overrides))
             per_capture.append(mse_row(label, capture, est, truth, observed, round(time.perf_counter() - start, 2)))
             print(per_capture[-1], flush=True)
-        mean = {g: round(float(np.mean([r[g] for r in per_capture])), 4) for g in (*GROUPS, "mean")}
+        mean = {g: round(float(np.mean([r[g] for r in per_capture])), 4) for g in (*TEXTURES, "mean")}
         rows += per_capture + [{"capture": "mean", "estimate": label, **mean,
                                 "seconds": round(sum(r["seconds"] for r in per_capture), 2)}]
     return rows

@@ -26,12 +26,12 @@ import yaml
 
 from freqbrdf.cameras import cameras_from_json
 from freqbrdf.config import derived_seed
-from freqbrdf.io import read_exr, read_json, read_svbrdf_dir, read_views
+from freqbrdf.artefacts import read_svbrdf
+from freqbrdf.brdf import TEXTURES
+from freqbrdf.io import read_exr, read_json, read_views
 from freqbrdf.metrics import relight_scores
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.render import relit_views
-
-TEXTURES = ("base_color", "roughness", "metallic")
 
 
 def variants(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray], min_roughness: float) -> dict[str, dict]:
@@ -56,8 +56,8 @@ def main() -> None:
     config = yaml.safe_load(Path(args.config).read_text())
     render = config["render"]
     results = Path("results")
-    truth = read_svbrdf_dir(results / "objects" / obj)
-    estimate = read_svbrdf_dir(results / "estimates" / obj / env / args.poses / args.method)
+    truth = read_svbrdf(results / "objects" / obj)
+    estimate = read_svbrdf(results / "estimates" / obj / env / args.poses / args.method)
     mi = setup_mitsuba(threads=args.threads)
 
     rows = []

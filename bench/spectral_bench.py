@@ -1,4 +1,4 @@
-"""Time and peak memory of the frequency-domain stage (freqbrdf.spectral).
+"""Time and peak memory of the frequency-domain stage (freqbrdf.shfit, freqbrdf.spectrum).
 
 Cases (each runs in a fresh Python process so its peak RSS is its own):
 
@@ -51,7 +51,7 @@ CASES = {
 
 def observations(n_tex: int, n_views: int, seed: int = 0) -> tuple[np.ndarray, ...]:
     """Synthetic (wo_local, weight, radiance, incoming) shaped like the observation stage's."""
-    from freqbrdf import sh, spectral
+    from freqbrdf import sh, shfit
 
     rng = np.random.default_rng(seed)
     normal = rng.normal(size=(n_tex, 3))
@@ -63,7 +63,7 @@ def observations(n_tex: int, n_views: int, seed: int = 0) -> tuple[np.ndarray, .
     cameras = sh.fibonacci_hemisphere(n_views)  # distant cameras, world +Y up
     wo_local = np.einsum("tij,kj->tki", frame, cameras)
     weight = np.clip(wo_local[..., 2], 0.0, None) * (rng.random((n_tex, n_views)) > 0.1)
-    wr_world = np.einsum("tji,tkj->tki", frame, spectral.mirror_directions(wo_local))
+    wr_world = np.einsum("tji,tkj->tki", frame, shfit.mirror_directions(wo_local))
     lamps = rng.normal(size=(4, 3))
     lamps /= np.linalg.norm(lamps, axis=1, keepdims=True)
     incoming = 0.3 + 0.2 * wr_world[..., 1:2] + np.einsum(
@@ -89,26 +89,26 @@ def spectra_inputs(n_tex: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 
 def run_case(name: str) -> dict:
     """Run one case in this process; return its measurements."""
-    from freqbrdf import spectral
+    from freqbrdf import shfit, spectrum
 
     kind, workers, solver, penalise_dc = CASES[name]
     if kind == "search":
         n_tex = 512 * 512
         s_b, s_l = spectra_inputs(n_tex)
-        grid = spectral.default_grid(8, 8, 24**-0.5)
+        grid = spectrum.default_grid(8, 8, 24**-0.5)
 
         def work() -> None:
-            spectral.spectrum_search(s_b, s_l, *grid, workers=workers)
+            spectrum.spectrum_search(s_b, s_l, *grid, workers=workers)
 
         row = {"texels": n_tex, "views": "", "grid": "8x8", "target_s": 1.0}
     else:
         n_tex, n_views = 256 * 256, 24
         wo, weight, radiance, incoming = observations(n_tex, n_views)
         values = np.concatenate([radiance, incoming, np.ones_like(radiance[..., :1])], axis=-1)
-        directions = spectral.mirror_directions(wo)
+        directions = shfit.mirror_directions(wo)
 
         def work() -> None:
-            spectral.fit_sh(
+            shfit.fit_sh(
                 directions, values, weight, LMAX, "exp", 1e-3, solver=solver, workers=workers, penalise_dc=penalise_dc
             )
 

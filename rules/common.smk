@@ -2,6 +2,7 @@
 # the library modules each rule depends on.
 from pathlib import Path
 
+from freqbrdf.brdf import TEXTURES
 from freqbrdf.config import derived_seed
 from freqbrdf.dependencies import script_modules
 from freqbrdf.methods import METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
@@ -56,12 +57,7 @@ def library(script):
 def object_files(name):
     """Ground-truth files of one object, keyed like the build_object outputs."""
     base = f"results/objects/{name}"
-    return {
-        "mesh": f"{base}/mesh.ply",
-        "base_color": f"{base}/base_color.exr",
-        "roughness": f"{base}/roughness.exr",
-        "metallic": f"{base}/metallic.exr",
-    }
+    return {"mesh": f"{base}/mesh.ply"} | {texture: f"{base}/{texture}.exr" for texture in TEXTURES}
 
 
 def capture_dir(wildcards, split):

@@ -1,6 +1,10 @@
 # Settings that only change how results/tables/metrics.csv scores the outputs.
 # Only the metrics rule receives them, so editing one reruns nothing upstream.
 METRIC_KEYS = ["mask_min_coverage", "hdr_clip", "hdr_normalise"]
+# What the metrics rule scores; its input lists follow these orders.
+METRIC_ESTIMATES = [(o, e, POSES, m) for o, e in SYNTHETIC_CAPTURES for m in METHODS]
+METRIC_REFERENCES = sorted({(o, r) for o, _, _, _, r in RELIGHTS})
+METRIC_TIMINGS = [(o, e, POSES, m) for o, e in CAPTURES for m in METHODS]
 
 
 def method_benchmarks(o, e, p, m):
@@ -20,24 +24,28 @@ def method_benchmarks(o, e, p, m):
 
 rule metrics:
     """Every number of the benchmark in one tidy table: parameter MSE, relighting
-    (PSNR-H, PSNR-L, SSIM, MSE), entropy-error correlation, time and memory."""
+    (PSNR-H, PSNR-L, SSIM, MSE), entropy-error correlation, time and memory.
+    Each input list is in the order of the params entry of the same name."""
     input:
-        estimates=[f"results/estimates/{o}/{e}/{POSES}/{m}" for o, e in SYNTHETIC_CAPTURES for m in METHODS],
-        truth=[f for o in SYNTHETIC_OBJECTS for f in object_files(o).values()],
+        estimates=[f"results/estimates/{o}/{e}/{p}/{m}" for o, e, p, m in METRIC_ESTIMATES],
+        truth=[object_files(o)[name] for o in SYNTHETIC_OBJECTS for name in TEXTURES],
         observations=[f"results/observations/{o}/{e}/{POSES}" for o, e in SYNTHETIC_CAPTURES],
         entropy=[f"results/entropy/{o}/{e}/{POSES}" for o, e in SYNTHETIC_CAPTURES],
         relit=[f"results/relight/{o}/{e}/{p}/{m}/{r}" for o, e, p, m, r in RELIGHTS],
-        references=sorted({f"results/captures/{o}/{r}/test" for o, _, _, _, r in RELIGHTS}),
-        benchmarks=sorted({f for o, e in CAPTURES for m in METHODS for f in method_benchmarks(o, e, POSES, m)}),
+        references=[f"results/captures/{o}/{r}/test" for o, r in METRIC_REFERENCES],
+        benchmarks=[f for o, e, p, m in METRIC_TIMINGS for f in method_benchmarks(o, e, p, m)],
         code=library("metrics"),
     output:
         "results/tables/metrics.csv",
     params:
         metrics={key: config["evaluate"][key] for key in METRIC_KEYS},
-        synthetic=[(o, e, POSES, m) for o, e in SYNTHETIC_CAPTURES for m in METHODS],
+        synthetic=METRIC_ESTIMATES,
+        objects=SYNTHETIC_OBJECTS,
+        captures=[(o, e, POSES) for o, e in SYNTHETIC_CAPTURES],
         entropy_methods=[m for m in METHODS if METHOD_REGISTRY[m].entropy_scored],
         relights=RELIGHTS,
-        timings=[(o, e, POSES, m, method_benchmarks(o, e, POSES, m)) for o, e in CAPTURES for m in METHODS],
+        references=METRIC_REFERENCES,
+        timings=[(o, e, p, m, len(method_benchmarks(o, e, p, m))) for o, e, p, m in METRIC_TIMINGS],
     threads: 1
     log:
         "results/logs/metrics.log",

@@ -4,9 +4,7 @@ rule build_object:
         code=library("make_object"),
     output:
         **object_files("{object}"),
-        base_color_png="results/objects/{object}/base_color.png",
-        roughness_png="results/objects/{object}/roughness.png",
-        metallic_png="results/objects/{object}/metallic.png",
+        **{f"{texture}_png": f"results/objects/{{object}}/{texture}.png" for texture in TEXTURES},
     params:
         detail=config["meshes"]["detail"],
         textures=config["textures"],

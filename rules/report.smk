@@ -22,6 +22,11 @@ def capture_relights(wildcards):
     return sorted(pairs, key=lambda pair: (ENVS.index(pair[1]), METHODS.index(pair[0])))
 
 
+def relight_figure_envs(wildcards):
+    """Relighting environments of one capture's figure, in the order of its references input."""
+    return list(dict.fromkeys(r for _, r in capture_relights(wildcards)))
+
+
 rule tables:
     """The paper's Tables 1, 2, 4 and 5 with our numbers beside the paper's, and the
     claims table, as Markdown, LaTeX and HTML (the HTML pages are in the report)."""
@@ -57,8 +62,7 @@ rule capture_figure:
     input:
         estimates=lambda w: [f"results/estimates/{w.object}/{w.env}/{w.poses}/{m}" for m in METHODS],
         # Real captures have no ground-truth textures: their figure shows no error maps.
-        truth=lambda w: [] if w.object in REAL_CAPTURES else
-            [f"results/objects/{w.object}/{n}.exr" for n in ("base_color", "roughness", "metallic")],
+        truth=lambda w: [] if w.object in REAL_CAPTURES else [object_files(w.object)[n] for n in TEXTURES],
         observations="results/observations/{object}/{env}/{poses}",
         entropy="results/entropy/{object}/{env}/{poses}",
         code=library("report_figures"),
@@ -81,7 +85,7 @@ rule relight_figure:
     render, under each held-out environment, with PSNR-H from metrics.csv."""
     input:
         relit=lambda w: [f"results/relight/{w.object}/{w.env}/{w.poses}/{m}/{r}" for m, r in capture_relights(w)],
-        references=lambda w: sorted({f"results/captures/{w.object}/{r}/test" for _, r in capture_relights(w)}),
+        references=lambda w: [f"results/captures/{w.object}/{r}/test" for r in relight_figure_envs(w)],
         metrics="results/tables/metrics.csv",
         code=library("report_figures"),
     output:
@@ -90,6 +94,7 @@ rule relight_figure:
                labels={"capture": "{object} / {env}", "figure": "relighting"}),
     params:
         relights=capture_relights,
+        references=relight_figure_envs,
     log:
         "results/logs/relight_figure/{object}_{env}_{poses}.log",
     conda:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
+from freqbrdf.brdf import TEXTURES
 from freqbrdf import inverse as inv
 from freqbrdf.cameras import Cameras, intrinsics, look_at, mitsuba_to_world
 from freqbrdf.config import ConfigError, check_config
@@ -80,7 +81,7 @@ def run(mi, capture, start, views=(0,), **settings):
 
 def parameter_mse(textures):
     truth = uniform_textures(**TRUTH)
-    return {n: float(np.mean((textures[n] - truth[n]) ** 2)) for n in inv.TEXTURES}
+    return {n: float(np.mean((textures[n] - truth[n]) ** 2)) for n in TEXTURES}
 
 
 def test_two_steps_lower_the_loss_and_change_the_textures(mi, capture):
@@ -88,7 +89,7 @@ def test_two_steps_lower_the_loss_and_change_the_textures(mi, capture):
     result, reports = run(mi, capture, start, epochs=2, spp=32, lr=0.1)
     assert len(result.loss) == 2 and result.loss[1] < result.loss[0]
     assert [r.epoch for r in reports] == [1, 2] and reports[1].elapsed_s >= reports[0].elapsed_s > 0
-    for name in inv.TEXTURES:
+    for name in TEXTURES:
         assert result.textures[name].shape == start[name].shape and result.textures[name].dtype == np.float32
     # Adam's first step moves every seen texel by about lr: the red channel up, green and blue down.
     change = result.textures["base_color"] - start["base_color"]
@@ -116,7 +117,7 @@ def test_textures_are_clamped_to_the_unit_interval_after_every_step(mi, capture)
     # up past 1 (the red channel), metallic down past 0.
     start = uniform_textures((0.9, 0.9, 0.9), 0.9, 0.1)
     result, _ = run(mi, capture, start, epochs=1, spp=16, lr=0.5)
-    for name in inv.TEXTURES:
+    for name in TEXTURES:
         assert result.textures[name].min() >= 0.0 and result.textures[name].max() <= 1.0
     assert result.textures["base_color"][..., 0].max() == 1.0
     assert result.textures["metallic"].min() == 0.0
@@ -132,7 +133,7 @@ def test_same_seed_same_result_other_seed_other_noise(mi, capture):
     # Two threads sum the texel gradients by atomics in varying order, and Adam
     # magnifies that rounding on texels whose gradient is almost 0 (one thread:
     # bit-identical); a step moves texels by lr = 0.05.
-    for name in inv.TEXTURES:
+    for name in TEXTURES:
         np.testing.assert_allclose(first.textures[name], again.textures[name], atol=0.01)
     assert not np.allclose(first.loss, other.loss, rtol=1e-4)
 
@@ -189,17 +190,17 @@ def test_image_loss_and_total_variation_match_their_formulas(mi):
 @pytest.mark.parametrize(
     "settings, message",
     [
-        ({"epochs": 0}, r"epochs must be an integer >= 1, got 0"),
-        ({"spp": 2.5}, r"spp must be an integer >= 1, got 2.5"),
+        ({"epochs": 0}, r"epochs must be >= 1, got 0"),
+        ({"spp": 2.5}, r"spp must be an int, got float 2.5"),
         ({"lr": 0.0}, r"lr must be a finite number > 0, got 0.0"),
         ({"loss": "l1"}, r"loss must be one of \('l1log', 'l2'\), got 'l1'"),
         ({"tv_weight": -1e-3}, r"tv_weight must be a finite number >= 0"),
         ({"max_depth": 0}, r"max_depth must be -1 \(unlimited\) or >= 1, got 0"),
-        ({"seed": -1}, r"seed must be an integer >= 0, got -1"),
+        ({"seed": -1}, r"seed must be >= 0, got -1"),
     ],
 )
 def test_bad_settings_give_one_line_naming_the_field(settings, message):
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises((TypeError, ValueError), match=message):
         inv.InverseSettings(**settings)
 
 
@@ -220,7 +221,7 @@ def test_bad_start_textures_are_refused():
         (lambda c: c["mitsuba"]["finetune"].update(epochs=0), r"config key mitsuba\.finetune\.epochs: 0 is less than"),
         (lambda c: c["mitsuba"].update(spp=8.5), r"config key mitsuba\.spp: 8\.5 is not of type 'integer'"),
         (lambda c: c["mitsuba"].pop("max_depth"), r"config key mitsuba: 'max_depth' is a required property"),
-        (lambda c: c.update(methods=["freq", "mitsuba2"]), r"config key methods\.1: 'mitsuba2' is not one of"),
+        (lambda c: c.update(methods=["freq", "mitsuba2"]), r"config key methods: \['mitsuba2'\] are not registered methods"),
     ],
 )
 def test_config_mistakes_in_the_mitsuba_section_name_the_key(repo, edit, message):

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from freqbrdf.io import atomic_path, read_exr, read_json, read_png, tonemap, to_srgb, write_exr, write_json, write_png
+from freqbrdf.io import atomic_path, read_exr, read_json, read_png, write_exr, write_json, write_png
+from freqbrdf.colour import tonemap, to_srgb
 
 
 @pytest.mark.parametrize("shape", [(5, 7), (5, 7, 3), (5, 7, 4)])
@@ -74,27 +75,6 @@ def test_srgb_curve_and_tonemap_known_values():
     assert tonemap(np.array([0.1]))[0] < tonemap(np.array([0.2]))[0] < 1.0
 
 
-def test_svbrdf_files_are_checked_naming_the_bad_file(tmp_path):
-    from freqbrdf.io import read_svbrdf
-
-    paths = {name: tmp_path / f"{name}.exr" for name in ("base_color", "roughness", "metallic")}
-    write_exr(paths["base_color"], np.full((8, 8, 3), 0.5))
-    write_exr(paths["roughness"], np.full((8, 8), 0.3))
-    write_exr(paths["metallic"], np.zeros((8, 8)))
-    textures = read_svbrdf(**paths)
-    assert textures["base_color"].shape == (8, 8, 3) and textures["roughness"].shape == (8, 8)
-
-    write_exr(paths["metallic"], np.zeros((4, 8)))
-    with pytest.raises(ValueError, match=r"metallic.exr: metallic texture is \(4, 8\), but base_color is \(8, 8\)"):
-        read_svbrdf(**paths)
-    write_exr(paths["metallic"], np.zeros((8, 8, 3)))
-    with pytest.raises(ValueError, match="metallic.exr: metallic texture has 3 channels, expected 1"):
-        read_svbrdf(**paths)
-    write_exr(paths["metallic"], np.full((8, 8), 1.5))
-    with pytest.raises(ValueError, match=r"metallic.exr: metallic values span \[1.5, 1.5\]"):
-        read_svbrdf(**paths)
-
-
 def test_atomic_directory_replaces_only_on_success(tmp_path):
     from freqbrdf.io import atomic_directory
 
@@ -108,18 +88,3 @@ def test_atomic_directory_replaces_only_on_success(tmp_path):
             raise RuntimeError("interrupted")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["capture"]  # no partial directory left
     assert [p.name for p in target.iterdir()] == ["a.txt"]  # the old complete output is untouched
-
-
-def test_read_svbrdf_dir_reads_the_three_textures_of_a_directory(tmp_path):
-    from freqbrdf.io import read_svbrdf_dir, write_exr
-
-    rng = np.random.default_rng(0)
-    textures = {"base_color": rng.random((8, 8, 3)), "roughness": rng.random((8, 8)), "metallic": rng.random((8, 8))}
-    for name, texture in textures.items():
-        write_exr(tmp_path / f"{name}.exr", texture.astype(np.float32))
-    read = read_svbrdf_dir(tmp_path)
-    for name, texture in textures.items():
-        np.testing.assert_array_equal(read[name], texture.astype(np.float32))
-    (tmp_path / "metallic.exr").unlink()
-    with pytest.raises(Exception, match="metallic.exr"):
-        read_svbrdf_dir(tmp_path)

@@ -7,10 +7,13 @@ import functools
 import numpy as np
 import pytest
 
+import oracles
 from freqbrdf import envmaps, render, sh
 from freqbrdf import light as lt
 from freqbrdf import optimise as op
-from freqbrdf.spectral import R0_DIELECTRIC, mirror_directions
+from freqbrdf.artefacts import Observations
+from freqbrdf.brdf import R0_DIELECTRIC
+from freqbrdf.shfit import mirror_directions
 
 
 def exact_irradiance(env: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -36,18 +39,6 @@ ENVS = {
     "museum": lambda: envmaps.normalise(envmaps.museum(256, seed=2), 1.0),
     "overcast": lambda: envmaps.normalise(envmaps.overcast(256), 1.0),
 }
-
-
-def test_smith_g1_is_one_at_normal_incidence_and_falls_toward_grazing() -> None:
-    alpha = np.array([1e-3, 0.1, 0.5, 1.0])[:, None]
-    cos = np.linspace(1.0, 0.01, 50)[None, :]
-    g1 = lt.smith_g1(cos, alpha)
-    np.testing.assert_allclose(g1[:, 0], 1.0, rtol=0, atol=1e-15)
-    assert np.all(np.diff(g1, axis=1) < 0)  # toward grazing
-    assert np.all(np.diff(g1, axis=0)[:, 1:] < 0)  # rougher
-    assert g1[-1, -1] < 0.03  # alpha 1 at 89.4 degrees
-    # textbook value: alpha = 1, theta = 60 degrees -> tan^2 = 3, G1 = 2 / (1 + 2)
-    assert lt.smith_g1(0.5, 1.0) == pytest.approx(2.0 / 3.0, rel=1e-14)
 
 
 def test_downsampling_keeps_the_power_of_every_block() -> None:
@@ -150,7 +141,7 @@ def oracle_capture(env: np.ndarray, seed: int) -> tuple[dict, dict]:
     power = (env * sh.equirect_solid_angles(h, w)[:, None, None]).reshape(-1, 3)
     alpha = truth["roughness"] ** 2
     cos = normal @ d.T
-    shadow = np.where(cos > 0, lt.smith_g1(np.where(cos > 0, cos, 1.0), alpha[:, None]), 0.0)
+    shadow = np.where(cos > 0, oracles.smith_g1(np.where(cos > 0, cos, 1.0), alpha[:, None]), 0.0)
     basis = sh.real_sh(d, ORACLE_LMAX)
     lg = np.stack([(shadow * power[:, c]) @ basis for c in range(3)], axis=-1)
     mirror = np.einsum("tji,tkj->tki", frame, mirror_directions(wo))
@@ -160,12 +151,17 @@ def oracle_capture(env: np.ndarray, seed: int) -> tuple[dict, dict]:
     m, base = truth["metallic"][:, None, None], truth["base_color"][:, None, :]
     r0 = R0_DIELECTRIC * (1 - m) + m * base
     fresnel = r0 + (1 - r0) * (1 - np.clip(cos_o, 0, 1)) ** 5
-    masking = lt.smith_g1(np.clip(cos_o, 1e-6, 1), alpha[:, None, None])
+    masking = oracles.smith_g1(np.clip(cos_o, 1e-6, 1), alpha[:, None, None])
     irradiance = np.maximum(cos, 0.0) @ power
     radiance = (1 - m) * base * irradiance[:, None, :] / np.pi + fresnel * masking * spec
     capture = {"radiance": np.where(weight[..., None] > 0, radiance, 0.0), "weight": weight, "wo_local": wo,
                "frame": frame, "texel": np.arange(t), "resolution": int(np.ceil(np.sqrt(t)))}
     return capture, truth
+
+
+def observations(capture: dict) -> Observations:
+    return Observations.from_arrays(*(capture[k] for k in ("radiance", "weight", "wo_local", "frame", "texel",
+                                                           "resolution")))
 
 
 @pytest.mark.parametrize("name", ["studio", "sunny"])
@@ -183,9 +179,8 @@ def test_recovers_the_paper_model_above_the_band_limit(name: str, request) -> No
     env = lt.downsample_equirect(env, 128)  # a 1.4-degree grid keeps the per-texel oracle quick
     capture, truth = oracle_capture(env, seed=0)
     est, _ = op.optimise(
-        capture["radiance"], capture["weight"], capture["wo_local"], capture["frame"],
-        lt.irradiance(env, capture["frame"][:, 2]), capture["texel"], capture["resolution"],
-        lt.light_quadrature(env, 20), None, "freq", op.OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0),
+        observations(capture), lt.irradiance(env, capture["frame"][:, 2]), lt.light_quadrature(env, 20), None,
+        "freq", op.OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0),
     )
     for r, tolerance in zip(ROUGHNESS, (0.05, 0.03, 0.03, 0.03)):
         sel = truth["roughness"] == r
@@ -207,8 +202,7 @@ def test_the_papers_prefiltered_light_biases_roughness_low() -> None:
     env = lt.downsample_equirect(ENVS["studio"](), 128)
     capture, truth = oracle_capture(env, seed=1)
     settings = op.OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0)
-    args = (capture["radiance"], capture["weight"], capture["wo_local"], capture["frame"],
-            lt.irradiance(env, capture["frame"][:, 2]), capture["texel"], capture["resolution"])
+    args = (observations(capture), lt.irradiance(env, capture["frame"][:, 2]))
     sel = truth["roughness"] == 0.7
     paper, _ = op.optimise(*args, lt.light_quadrature(env, 16, prefilter=24**-0.5), None, "freq", settings)
     ours, _ = op.optimise(*args, lt.light_quadrature(env, 16), None, "freq", settings)

@@ -13,7 +13,8 @@ from scipy.spatial.transform import Rotation
 
 from freqbrdf import sfm
 from freqbrdf.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsics, mitsuba_to_world, project
-from freqbrdf.io import read_png, tonemap, write_exr, write_json, write_png
+from freqbrdf.io import read_png, write_exr, write_json, write_png
+from freqbrdf.colour import tonemap
 
 
 def make_rig(n: int = 12, size: int = 64) -> Cameras:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -199,7 +198,7 @@ def test_project_equirect_recovers_coefficients():
 def test_constant_map():
     c = sh.project_equirect(np.ones((256, 512)), LMAX)
     assert abs(c[0] - np.sqrt(4 * np.pi)) < 1e-12
-    spec = sh.power_spectrum(c)
+    spec = sh.power_spectrum(c[:, None])[:, 0]
     assert spec.shape == (LMAX + 1,)
     assert abs(spec[0] - 4 * np.pi) < 1e-11
     assert np.all(spec[1:] < 1e-7)
@@ -223,10 +222,11 @@ def test_eval_sh_shapes_and_values():
 # --------------------------------------------------------------------------
 def test_power_spectrum_definition_and_axis():
     rng = np.random.default_rng(8)
-    c = rng.normal(size=(3, K))  # coefficient axis LAST
+    c = rng.normal(size=(2, K, 3))  # (batch, coefficient, channel)
     s = sh.power_spectrum(c)
-    assert s.shape == (3, LMAX + 1)
-    ref = np.array([[np.sum(row[l * l:(l + 1) ** 2] ** 2) for l in range(LMAX + 1)] for row in c])
+    assert s.shape == (2, LMAX + 1, 3)
+    ref = np.array([[[np.sum(c[t, l * l:(l + 1) ** 2, ch] ** 2) for ch in range(3)] for l in range(LMAX + 1)]
+                    for t in range(2)])
     np.testing.assert_allclose(s, ref, rtol=1e-14)
     np.testing.assert_allclose(sh.power_spectrum(c, lmax=4), ref[:, :5], rtol=1e-14)
 
@@ -243,7 +243,7 @@ def test_power_spectrum_rotation_invariant():
     assert np.max(np.abs(fitted - coeffs)) > 0.1
     # ... but not the per-degree power
     np.testing.assert_allclose(
-        sh.power_spectrum(fitted), sh.power_spectrum(coeffs), rtol=0, atol=1e-8
+        sh.power_spectrum(fitted[:, None]), sh.power_spectrum(coeffs[:, None]), rtol=0, atol=1e-8
     )
 
 
@@ -288,10 +288,12 @@ def test_bad_inputs_raise():
         sh.eval_sh(np.zeros(10), np.zeros((7, 3)))
     with pytest.raises(ValueError, match=re.escape("(32,)")):
         sh.project_equirect(np.zeros(32), 2)
-    with pytest.raises(ValueError, match=re.escape("(2, 10)")):
-        sh.power_spectrum(np.zeros((2, 10)))
-    with pytest.raises(ValueError, match=re.escape("(2, 9)")):
-        sh.power_spectrum(np.zeros((2, 9)), lmax=3)
+    with pytest.raises(ValueError, match=re.escape("(10, 2)")):
+        sh.power_spectrum(np.zeros((10, 2)))
+    with pytest.raises(ValueError, match=re.escape("(9, 2)")):
+        sh.power_spectrum(np.zeros((9, 2)), lmax=3)
+    with pytest.raises(ValueError, match=re.escape("(9,)")):
+        sh.power_spectrum(np.zeros(9))
     with pytest.raises(ValueError):
         sh.real_sh(np.zeros((5, 3)), -1)
     with pytest.raises(TypeError):

@@ -22,10 +22,10 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .colour import LUMINANCE
 from .sh import equirect_directions, equirect_solid_angles, power_spectrum, project_equirect
 
 ENV_KINDS = ("studio", "museum", "sunny", "overcast")
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 weights of linear RGB
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -284,7 +284,7 @@ def sh_spectrum(envmap: np.ndarray, lmax: int) -> np.ndarray:
     """
     rgb = np.asarray(envmap, dtype=np.float64)
     channels = np.concatenate([rgb, (rgb @ LUMINANCE)[..., None]], axis=-1)
-    return power_spectrum(project_equirect(channels, lmax).T).T
+    return power_spectrum(project_equirect(channels, lmax))
 
 
 def high_frequency_fraction(spectrum: np.ndarray, above: int) -> float:

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .io import to_srgb, tonemap
+from .colour import to_srgb, tonemap
 from .metrics import parameter_error_map
 from .plots import _pyplot, _save
 

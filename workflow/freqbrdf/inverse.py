@@ -43,19 +43,15 @@ from types import ModuleType
 
 import numpy as np
 
+from .brdf import TEXTURES
 from .cameras import Cameras, mitsuba_to_world
 from .render import capture_scene, principled_bsdf
+from .validation import check_int
 
-TEXTURES = ("base_color", "roughness", "metallic")
 LOSSES = ("l1log", "l2")
 # The object's name in the scene built by render.capture_scene.
 _PARAM_KEYS = {name: f"object.bsdf.{name}.data" for name in TEXTURES}
 _CHANNELS = {"base_color": 3, "roughness": 1, "metallic": 1}
-
-
-def _check_int(value: object, name: str, minimum: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -90,10 +86,10 @@ class InverseSettings:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        _check_int(self.epochs, "epochs", 1)
-        _check_int(self.spp, "spp", 1)
-        _check_int(self.seed, "seed", 0)
-        _check_int(self.max_depth, "max_depth", -1)
+        check_int(self.epochs, "epochs", 1)
+        check_int(self.spp, "spp", 1)
+        check_int(self.seed, "seed", 0)
+        check_int(self.max_depth, "max_depth", -1)
         if self.max_depth == 0:
             raise ValueError("max_depth must be -1 (unlimited) or >= 1, got 0")
         if not (np.isfinite(self.lr) and self.lr > 0):
@@ -160,7 +156,7 @@ def constant_textures(resolution: int, value: float = 0.5) -> dict[str, np.ndarr
     dict
         ``base_color`` (R, R, 3), ``roughness`` and ``metallic`` (R, R), float32.
     """
-    _check_int(resolution, "resolution", 1)
+    check_int(resolution, "resolution", 1)
     if not 0.0 <= value <= 1.0:
         raise ValueError(f"constant texture value must be in [0, 1], got {value!r}")
     return {

@@ -136,43 +136,6 @@ def read_exr(path: str | os.PathLike, *, allow_nonfinite: bool = False) -> np.nd
     return image
 
 
-def to_srgb(linear: np.ndarray) -> np.ndarray:
-    """sRGB transfer curve of linear values clipped to [0, 1].
-
-    Parameters
-    ----------
-    linear : ndarray
-        Linear radiance or reflectance, any shape.
-
-    Returns
-    -------
-    ndarray
-        Display values in [0, 1], same shape.
-    """
-    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-
-
-def tonemap(hdr: np.ndarray, exposure: float = 1.0) -> np.ndarray:
-    """Display an HDR image: exposure, extended Reinhard (white point 4), then sRGB.
-
-    Parameters
-    ----------
-    hdr : ndarray, shape (..., 3)
-        Linear radiance.
-    exposure : float
-        Multiplier applied before the curve.
-
-    Returns
-    -------
-    ndarray, same shape, values in [0, 1]
-    """
-    x = np.maximum(np.asarray(hdr, dtype=np.float64) * exposure, 0.0)
-    # Extended Reinhard keeps mid-tones almost linear and maps 4.0 to white,
-    # so highlights of sunny captures stay readable in previews.
-    return to_srgb(x * (1.0 + x / 16.0) / (1.0 + x))
-
-
 def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
     """Write an 8-bit PNG from display values in [0, 1] or from uint8.
 
@@ -226,51 +189,6 @@ def read_json(path: str | os.PathLike) -> Any:
         return json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: malformed JSON ({exc})") from None
-
-
-def read_svbrdf(base_color: str | os.PathLike, roughness: str | os.PathLike, metallic: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Read and check the three SVBRDF texture EXRs of one object.
-
-    Parameters
-    ----------
-    base_color, roughness, metallic : path-like
-        EXR files: RGB base colour, single-channel roughness and metallic.
-
-    Returns
-    -------
-    dict
-        ``base_color`` (H, W, 3), ``roughness`` (H, W), ``metallic`` (H, W), float32.
-
-    Raises
-    ------
-    ValueError
-        Naming the file whose channel count, size or value range is wrong.
-    """
-    paths = {"base_color": base_color, "roughness": roughness, "metallic": metallic}
-    textures = {}
-    for name, path in paths.items():
-        texture = read_exr(path)
-        channels = 1 if texture.ndim == 2 else texture.shape[2]
-        wanted = 3 if name == "base_color" else 1
-        if channels != wanted:
-            raise ValueError(f"{path}: {name} texture has {channels} channels, expected {wanted}")
-        if texture.min() < -1e-6 or texture.max() > 1.0 + 1e-6:
-            raise ValueError(f"{path}: {name} values span [{texture.min():.3g}, {texture.max():.3g}], expected [0, 1]")
-        textures[name] = texture
-    size = textures["base_color"].shape[:2]
-    for name in ("roughness", "metallic"):
-        if textures[name].shape[:2] != size:
-            raise ValueError(
-                f"{paths[name]}: {name} texture is {textures[name].shape[:2]}, but base_color is {size}"
-            )
-    return textures
-
-
-def read_svbrdf_dir(directory: str | os.PathLike) -> dict[str, np.ndarray]:
-    """:func:`read_svbrdf` of ``base_color.exr``, ``roughness.exr`` and
-    ``metallic.exr`` in one directory (an object's or an estimate's)."""
-    directory = Path(directory)
-    return read_svbrdf(*(directory / f"{name}.exr" for name in ("base_color", "roughness", "metallic")))
 
 
 def read_views(capture_dir: str | os.PathLike, names: list[str] | tuple[str, ...], width: int, height: int) -> tuple[np.ndarray, np.ndarray, int]:

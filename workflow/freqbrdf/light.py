@@ -33,7 +33,6 @@ from .sh import equirect_directions, equirect_solid_angles, project_equirect, re
 
 __all__ = [
     "LightQuadrature",
-    "smith_g1",
     "light_quadrature",
     "shadowed_light",
     "irradiance",
@@ -41,26 +40,6 @@ __all__ = [
 ]
 
 _TEXEL_CHUNK = 1024  # texels per block of similar normals (the texels x nodes shadowing matrix: 15 MB)
-
-
-def smith_g1(cos_theta: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """GGX Smith masking of one direction, ``2 / (1 + sqrt(1 + alpha^2 tan^2 theta))`` (paper Eq. 8).
-
-    Parameters
-    ----------
-    cos_theta : numpy.ndarray
-        Cosine of the angle to the normal, in (0, 1] (broadcastable with ``alpha``).
-    alpha : numpy.ndarray
-        GGX width (dimensionless, >= 0).
-
-    Returns
-    -------
-    numpy.ndarray
-        In (0, 1]; 1 at normal incidence, falling toward grazing angles and with alpha.
-    """
-    c2 = np.square(np.asarray(cos_theta, dtype=np.float64))
-    a = np.asarray(alpha, dtype=np.float64)
-    return 2.0 / (1.0 + np.sqrt(1.0 + a * a * (1.0 - c2) / c2))
 
 
 @dataclass(frozen=True)

@@ -6,9 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .io import to_srgb
-
-PARAMETERS = ("base_color", "roughness", "metallic")
+from .brdf import TEXTURES
+from .colour import to_srgb
 
 
 def parameter_mse(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray], texels: np.ndarray) -> dict[str, float]:
@@ -30,14 +29,14 @@ def parameter_mse(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray],
     if len(texels) == 0:
         raise ValueError("parameter_mse: no texels to score")
     out = {}
-    for name in PARAMETERS:
+    for name in TEXTURES:
         if truth[name].shape != estimate[name].shape:
             raise ValueError(f"parameter_mse: {name} is {estimate[name].shape}, ground truth {truth[name].shape}")
         n = truth[name].shape[0] * truth[name].shape[1]
         t = truth[name].reshape(n, -1)[texels].astype(np.float64)
         e = estimate[name].reshape(n, -1)[texels].astype(np.float64)
         out[name] = float(np.mean((t - e) ** 2))
-    out["average"] = float(np.mean([out[name] for name in PARAMETERS]))
+    out["average"] = float(np.mean([out[name] for name in TEXTURES]))
     return out
 
 
@@ -58,38 +57,12 @@ def parameter_error_map(truth: dict[str, np.ndarray], estimate: dict[str, np.nda
     ndarray, shape (R, R), float64
     """
     groups = []
-    for name in PARAMETERS:
+    for name in TEXTURES:
         if truth[name].shape != estimate[name].shape:
             raise ValueError(f"parameter_error_map: {name} is {estimate[name].shape}, ground truth {truth[name].shape}")
         squared = (truth[name].astype(np.float64) - estimate[name].astype(np.float64)) ** 2
         groups.append(squared.mean(axis=2) if squared.ndim == 3 else squared)
     return np.mean(groups, axis=0)
-
-
-def pearson(x: np.ndarray, y: np.ndarray) -> float:
-    """Pearson correlation coefficient of two samples.
-
-    Parameters
-    ----------
-    x, y : ndarray, shape (N,)
-        Paired finite values, N >= 2 (any shape with N elements is flattened).
-
-    Returns
-    -------
-    float
-        In [-1, 1]; NaN when either sample is constant (the correlation is undefined).
-    """
-    a = np.asarray(x, dtype=np.float64).ravel()
-    b = np.asarray(y, dtype=np.float64).ravel()
-    if a.size != b.size:
-        raise ValueError(f"pearson: x has {a.size} values, y {b.size}")
-    if a.size < 2:
-        raise ValueError(f"pearson: need at least 2 pairs, got {a.size}")
-    if not (np.isfinite(a).all() and np.isfinite(b).all()):
-        raise ValueError("pearson: x or y holds NaN/Inf values")
-    a, b = a - a.mean(), b - b.mean()
-    norm = np.sqrt((a @ a) * (b @ b))
-    return float(np.clip(a @ b / norm, -1.0, 1.0)) if norm > 0 else float("nan")
 
 
 # --------------------------------------------------------------------------

@@ -79,20 +79,19 @@ from typing import Callable, Mapping
 import numpy as np
 from scipy import sparse
 
+from .artefacts import Observations
+from .brdf import R0_DIELECTRIC, TEXTURES, alpha_from_roughness, smith_g1, tan2_theta
 from .light import LightQuadrature, shadowed_light
 from .methods import get_method
 from .sh import real_sh
-from .spectral import R0_DIELECTRIC, _check_int, mirror_directions
+from .shfit import mirror_directions
+from .validation import check_finite, check_int, check_shape
 
 __all__ = [
-    "PARAM_NAMES",
     "PARAM_COLUMNS",
-    "ALPHA_MIN",
     "OptimiseSettings",
     "Problem",
-    "alpha_from_roughness",
     "identifiable_roughness",
-    "schlick_fresnel",
     "atlas_neighbours",
     "build_problem",
     "pack_params",
@@ -106,9 +105,7 @@ __all__ = [
     "optimise",
 ]
 
-PARAM_NAMES = ("base_color", "roughness", "metallic")
 PARAM_COLUMNS = ("base_r", "base_g", "base_b", "roughness", "metallic")  # columns of a packed (T, 5) array
-ALPHA_MIN = 1e-3  # Mitsuba's principled BSDF clamps alpha here
 _N_PARAMS = len(PARAM_COLUMNS)
 _DTYPES = ("float32", "float64")
 _EVAL_CHUNK = 16384  # observations per chunk when evaluating the light terms (Y and Lg gathers: ~20 MB)
@@ -117,17 +114,6 @@ _EVAL_CHUNK = 16384  # observations per chunk when evaluating the light terms (Y
 # --------------------------------------------------------------------------
 # settings and validation
 # --------------------------------------------------------------------------
-def _check_shape(a: np.ndarray, name: str, shape: tuple[int | None, ...]) -> None:
-    """``shape`` entries of None match any size."""
-    if a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape)):
-        want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
-        raise ValueError(f"{name} must have shape {want}, got shape {a.shape}")
-
-
-def _check_finite(a: np.ndarray, name: str) -> None:
-    if not np.all(np.isfinite(a)):
-        idx = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
-        raise ValueError(f"{name} must be finite, got {float(a[idx])!r} at index {idx}")
 
 
 def _check_method(method: str) -> tuple[bool, bool]:
@@ -197,12 +183,12 @@ class OptimiseSettings:
     chunk_pairs: int = 32768
 
     def __post_init__(self) -> None:
-        _check_int(self.iterations, "iterations", 0)
-        _check_int(self.grid_roughness, "grid_roughness", 2)
-        _check_int(self.grid_metallic, "grid_metallic", 2)
-        _check_int(self.refit_every, "refit_every", 1)
-        _check_int(self.workers, "workers", 1)
-        _check_int(self.chunk_pairs, "chunk_pairs", 1)
+        check_int(self.iterations, "iterations", 0)
+        check_int(self.grid_roughness, "grid_roughness", 2)
+        check_int(self.grid_metallic, "grid_metallic", 2)
+        check_int(self.refit_every, "refit_every", 1)
+        check_int(self.workers, "workers", 1)
+        check_int(self.chunk_pairs, "chunk_pairs", 1)
         if not (np.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr must be a finite number > 0, got {self.lr!r}")
         if len(self.betas) != 2 or not all(0.0 <= b < 1.0 for b in self.betas):
@@ -222,31 +208,6 @@ class OptimiseSettings:
 # --------------------------------------------------------------------------
 # BRDF terms
 # --------------------------------------------------------------------------
-def alpha_from_roughness(roughness: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """GGX width ``alpha = max(r^2, ALPHA_MIN)`` and the derivative the optimiser uses.
-
-    Below ``r_min = sqrt(ALPHA_MIN)`` alpha is constant, so the true
-    derivative is 0 there and a texel whose roughness overshoots below
-    ``r_min`` (Adam moves every parameter by about ``lr`` per step, whatever
-    the gradient's size) would never move again; with 0.5 initial values this
-    trapped 1-2 of the 200 texels of a noise-free synthetic test at
-    ``r ~ 0.01`` although their true roughness was 0.3-0.37. So the derivative is
-    passed straight through the clamp: ``2 max(r, r_min)``, exact wherever
-    the clamp is inactive.
-
-    Parameters
-    ----------
-    roughness : numpy.ndarray
-        Shape ``(T,)``, in [0, 1].
-
-    Returns
-    -------
-    alpha, dalpha_dr : numpy.ndarray
-        Shape ``(T,)``, float64.
-    """
-    r = np.asarray(roughness, dtype=np.float64)
-    r_min = np.sqrt(ALPHA_MIN)
-    return np.maximum(r * r, ALPHA_MIN), 2.0 * np.maximum(r, r_min)
 
 
 def identifiable_roughness(lmax: int, tail: float = 0.05) -> float:
@@ -271,34 +232,10 @@ def identifiable_roughness(lmax: int, tail: float = 0.05) -> float:
     float
         Roughness in (0, 1).
     """
-    lmax = _check_int(lmax, "lmax", 0)
+    lmax = check_int(lmax, "lmax", 0)
     if not 0.0 < tail < 1.0:
         raise ValueError(f"tail must be in (0, 1), got {tail!r}")
     return float(np.sqrt(min(np.sqrt(np.log(1.0 / tail)) / (lmax + 1), 1.0)))
-
-
-def _tan2(cos_theta: np.ndarray) -> np.ndarray:
-    c2 = cos_theta * cos_theta
-    return (1.0 - c2) / c2
-
-
-def schlick_fresnel(r0: np.ndarray, cos_theta: np.ndarray) -> np.ndarray:
-    """Schlick's Fresnel ``R0 + (1 - R0)(1 - cos theta)^5``.
-
-    Parameters
-    ----------
-    r0 : numpy.ndarray
-        Reflectance at normal incidence (broadcastable with ``cos_theta``).
-    cos_theta : numpy.ndarray
-        Cosine of the angle to the normal, in [0, 1].
-
-    Returns
-    -------
-    numpy.ndarray
-        Reflectance, from ``R0`` at normal incidence to 1 at grazing.
-    """
-    s5 = (1.0 - np.asarray(cos_theta, dtype=np.float64)) ** 5
-    return np.asarray(r0, dtype=np.float64) * (1.0 - s5) + s5
 
 
 def atlas_neighbours(texel: np.ndarray, resolution: int) -> np.ndarray:
@@ -317,7 +254,7 @@ def atlas_neighbours(texel: np.ndarray, resolution: int) -> np.ndarray:
         Shape ``(M, 2)``, int64 positions into ``texel`` (not flat indices):
         all horizontal pairs (row-major), then all vertical ones.
     """
-    resolution = _check_int(resolution, "resolution", 1)
+    resolution = check_int(resolution, "resolution", 1)
     t = np.asarray(texel)
     lookup = np.full(resolution * resolution, -1, dtype=np.int64)
     lookup[t] = np.arange(t.shape[0])
@@ -466,7 +403,7 @@ def _make_chunk(
         valid=valid.astype(ftype),
         schlick=c5.astype(ftype),
         one_minus_schlick=(1.0 - c5).astype(ftype),
-        tan2=_tan2(c).astype(ftype),
+        tan2=tan2_theta(c).astype(ftype),
         radiance=np.ascontiguousarray(np.moveaxis(radiance[pairs], -1, 0) * valid, dtype=ftype),
     )
 
@@ -479,65 +416,21 @@ def _difference_operator(neighbours: np.ndarray, n_texels: int) -> sparse.csr_ma
     return sparse.csr_matrix((vals, (rows, neighbours.ravel())), shape=(m, n_texels))
 
 
-def build_problem(
-    radiance: np.ndarray,
-    weight: np.ndarray,
-    wo_local: np.ndarray,
-    frame: np.ndarray,
-    irradiance: np.ndarray,
-    texel: np.ndarray,
-    resolution: int,
-    dtype: str = "float32",
-    chunk_pairs: int = 32768,
-) -> Problem:
-    """Validate a capture's observations and arrange them for the estimator.
-
-    Parameters
-    ----------
-    radiance : numpy.ndarray
-        Shape ``(T, K, 3)``, observed outgoing radiance B (README "Observations").
-    weight : numpy.ndarray
-        Shape ``(T, K)``, fit weight (cos theta_o), 0 where not observed; pairs
-        with ``weight > 0`` are the observations.
-    wo_local : numpy.ndarray
-        Shape ``(T, K, 3)``, direction to the camera in the texel frame (z normal).
-    frame : numpy.ndarray
-        Shape ``(T, 3, 3)``, the texel frame in world coordinates: rows
-        tangent, bitangent and normal (the local x, y and z axes).
-    irradiance : numpy.ndarray
-        Shape ``(T, 3)``, E at the texel normals (radiance times sr).
-    texel : numpy.ndarray
-        Shape ``(T,)``, unique flat atlas indices ``i * R + j``.
-    resolution : int
-        Atlas size R.
-    dtype : {"float32", "float64"}
-        Precision of the per-observation arrays of the loss.
-    chunk_pairs : int
-        Padded observations per chunk (see `OptimiseSettings`).
-
-    Returns
-    -------
-    Problem
-    """
-    if dtype not in _DTYPES:
-        raise ValueError(f"dtype must be one of {_DTYPES}, got {dtype!r}")
-    chunk_pairs = _check_int(chunk_pairs, "chunk_pairs", 1)
-    resolution = _check_int(resolution, "resolution", 1)
-    w = np.asarray(weight)
-    _check_shape(w, "weight", (None, None))
+def _check_inputs(obs: Observations, irradiance: np.ndarray) -> np.ndarray:
+    """Validate the arrays `build_problem` reads; return the irradiance (T, 3) as float64."""
+    w = np.asarray(obs.weight)
+    check_shape(w, "weight", (None, None))
     n_tex, n_views = w.shape
-    b = np.asarray(radiance)
-    wo = np.asarray(wo_local)
-    fr = np.asarray(frame, dtype=np.float64)
+    for name in ("radiance", "wo_local"):
+        check_shape(np.asarray(getattr(obs, name)), name, (n_tex, n_views, 3))
+    frame = obs.frame
+    check_shape(frame, "frame", (n_tex, 3, 3))
+    check_finite(frame, "frame")
     e = np.asarray(irradiance, dtype=np.float64)
-    t = np.asarray(texel)
-    for name, a in (("radiance", b), ("wo_local", wo)):
-        _check_shape(a, name, (n_tex, n_views, 3))
-    _check_shape(fr, "frame", (n_tex, 3, 3))
-    _check_finite(fr, "frame")
-    _check_shape(e, "irradiance", (n_tex, 3))
-    _check_shape(t, "texel", (n_tex,))
-    _check_finite(e, "irradiance")
+    check_shape(e, "irradiance", (n_tex, 3))
+    check_finite(e, "irradiance")
+    t, resolution = np.asarray(obs.texels.texel), check_int(obs.texels.resolution, "resolution", 1)
+    check_shape(t, "texel", (n_tex,))
     if not np.issubdtype(t.dtype, np.integer):
         raise TypeError(f"texel must hold integers, got dtype {t.dtype}")
     if n_tex and (t.min() < 0 or t.max() >= resolution * resolution):
@@ -547,16 +440,21 @@ def build_problem(
         )
     if np.unique(t).shape[0] != n_tex:
         raise ValueError("texel indices must be unique")
-    _check_finite(w, "weight")
+    check_finite(w, "weight")
     if (w < 0).any():
         i, k = np.argwhere(w < 0)[0]
         raise ValueError(f"weight must be >= 0, got {float(w[i, k])!r} at texel {i}, view {k}")
+    return e
 
-    pt, pv = np.nonzero(w > 0)  # row-major, so sorted by texel
+
+def _observed_pairs(obs: Observations) -> tuple[np.ndarray, ...]:
+    """Texel and view of every observed pair (row-major, so sorted by texel), its radiance (n, 3),
+    unit direction to the camera (n, 3) and cos theta_o (n,), checked to be usable."""
+    pt, pv = np.nonzero(np.asarray(obs.weight) > 0)
     if pt.shape[0] == 0:
         raise ValueError("weight has no observed pair (no entry > 0)")
-    b_p = b[pt, pv].astype(np.float64)
-    wo_p = wo[pt, pv].astype(np.float64)
+    b_p = np.asarray(obs.radiance)[pt, pv].astype(np.float64)
+    wo_p = np.asarray(obs.wo_local)[pt, pv].astype(np.float64)
     for name, a in (("radiance", b_p), ("wo_local", wo_p)):
         bad = ~np.isfinite(a).all(axis=1)
         if bad.any():
@@ -573,6 +471,42 @@ def build_problem(
             f"wo_local must point above the surface (z > 0) where weight > 0, got {wo_p[i].tolist()} "
             f"at texel {pt[i]}, view {pv[i]}"
         )
+    return pt, pv, b_p, wo_p / norm[:, None], cos_o
+
+
+def build_problem(
+    obs: Observations,
+    irradiance: np.ndarray,
+    dtype: str = "float32",
+    chunk_pairs: int = 32768,
+) -> Problem:
+    """Validate a capture's observations and arrange them for the estimator.
+
+    Parameters
+    ----------
+    obs : Observations
+        The capture's T texels x K views: ``radiance`` B, ``weight`` (pairs
+        with ``weight > 0`` are the observations), ``wo_local``, the texel
+        frames and atlas indices (:class:`freqbrdf.artefacts.Observations`).
+    irradiance : numpy.ndarray
+        Shape ``(T, 3)``, E at the texel normals (radiance times sr).
+    dtype : {"float32", "float64"}
+        Precision of the per-observation arrays of the loss.
+    chunk_pairs : int
+        Padded observations per chunk (see `OptimiseSettings`).
+
+    Returns
+    -------
+    Problem
+    """
+    if dtype not in _DTYPES:
+        raise ValueError(f"dtype must be one of {_DTYPES}, got {dtype!r}")
+    chunk_pairs = check_int(chunk_pairs, "chunk_pairs", 1)
+    e = _check_inputs(obs, irradiance)
+    n_tex, n_views = obs.weight.shape
+    fr, t, resolution = obs.frame.astype(np.float64), np.asarray(obs.texels.texel), int(obs.texels.resolution)
+    w = np.asarray(obs.weight)
+    pt, pv, b_p, wo_p, cos_o = _observed_pairs(obs)
 
     all_counts = np.bincount(pt, minlength=n_tex)
     observed = np.nonzero(all_counts)[0].astype(np.int64)
@@ -597,7 +531,7 @@ def build_problem(
         observed=observed,
         weight=w[pt, pv].astype(np.float64),
         cos_o=cos_o,
-        mirror=np.einsum("nji,nj->ni", fr[pt], mirror_directions(wo_p / norm[:, None])),
+        mirror=np.einsum("nji,nj->ni", fr[pt], mirror_directions(wo_p)),
         normal=fr[:, 2] / np.linalg.norm(fr[:, 2], axis=1, keepdims=True),
         irradiance=e,
         neighbours=neighbours,
@@ -625,9 +559,9 @@ def pack_params(params: Mapping[str, np.ndarray], n_texels: int) -> np.ndarray:
     numpy.ndarray
         Shape ``(T, 5)``, float64.
     """
-    missing = [k for k in PARAM_NAMES if k not in params]
+    missing = [k for k in TEXTURES if k not in params]
     if missing:
-        raise ValueError(f"params lacks {missing}; expected keys {PARAM_NAMES}")
+        raise ValueError(f"params lacks {missing}; expected keys {TEXTURES}")
     out = np.empty((n_texels, _N_PARAMS))
     for name, cols, shape in (
         ("base_color", slice(0, 3), (n_texels, 3)),
@@ -635,8 +569,8 @@ def pack_params(params: Mapping[str, np.ndarray], n_texels: int) -> np.ndarray:
         ("metallic", 4, (n_texels,)),
     ):
         a = np.asarray(params[name], dtype=np.float64)
-        _check_shape(a, name, shape)
-        _check_finite(a, name)
+        check_shape(a, name, shape)
+        check_finite(a, name)
         if (a < 0).any() or (a > 1).any():
             raise ValueError(f"{name} must be in [0, 1], got {float(a[(a < 0) | (a > 1)][0])!r}")
         out[:, cols] = a
@@ -646,14 +580,14 @@ def pack_params(params: Mapping[str, np.ndarray], n_texels: int) -> np.ndarray:
 def unpack_params(x: np.ndarray) -> dict[str, np.ndarray]:
     """Inverse of `pack_params`: ``(T, 5)`` -> ``base_color`` (T, 3), ``roughness``, ``metallic`` (T,)."""
     x = np.asarray(x, dtype=np.float64)
-    _check_shape(x, "x", (None, _N_PARAMS))
+    check_shape(x, "x", (None, _N_PARAMS))
     return {"base_color": x[:, :3].copy(), "roughness": x[:, 3].copy(), "metallic": x[:, 4].copy()}
 
 
 def _check_x(x: np.ndarray, problem: Problem) -> np.ndarray:
     x = np.asarray(x, dtype=np.float64)
-    _check_shape(x, "x", (problem.n_texels, _N_PARAMS))
-    _check_finite(x, "x")
+    check_shape(x, "x", (problem.n_texels, _N_PARAMS))
+    check_finite(x, "x")
     return x
 
 
@@ -737,9 +671,9 @@ def light_terms(
         lobe-filtered value.
     """
     r = np.asarray(roughness, dtype=np.float64)
-    _check_shape(r, "roughness", (problem.n_texels,))
-    _check_finite(r, "roughness")
-    workers = _check_int(workers, "workers", 1)
+    check_shape(r, "roughness", (problem.n_texels,))
+    check_finite(r, "roughness")
+    workers = check_int(workers, "workers", 1)
     out = np.empty((problem.n_pairs, light.lmax + 1, 3), dtype=problem.dtype)
     if shadowing:
         _refit_light(out, r, problem, light, np.arange(problem.n_observed), workers, basis)
@@ -794,8 +728,8 @@ def _evaluate_light(
 
 def _check_light(light: np.ndarray, problem: Problem) -> np.ndarray:
     p = np.asarray(light)
-    _check_shape(p, "light", (problem.n_pairs, None, 3))
-    _check_finite(p, "light")
+    check_shape(p, "light", (problem.n_pairs, None, 3))
+    check_finite(p, "light")
     return p
 
 
@@ -947,9 +881,9 @@ def total_variation(x: np.ndarray, neighbours: np.ndarray) -> tuple[float, np.nd
         Shape ``(T, Q)``, float64, its (sub)gradient with ``sign(0) = 0``.
     """
     x = np.asarray(x, dtype=np.float64)
-    _check_shape(x, "x", (None, None))
+    check_shape(x, "x", (None, None))
     nb = np.asarray(neighbours)
-    _check_shape(nb, "neighbours", (None, 2))
+    check_shape(nb, "neighbours", (None, 2))
     if nb.size and (nb.min() < 0 or nb.max() >= x.shape[0]):
         raise ValueError(f"neighbours must index the {x.shape[0]} rows of x, got {nb.min()}..{nb.max()}")
     op = _difference_operator(nb, x.shape[0])
@@ -1049,7 +983,7 @@ def loss_and_gradient(
     tv_weight = float(tv_weight)
     if not (np.isfinite(tv_weight) and tv_weight >= 0):
         raise ValueError(f"tv_weight must be a finite number >= 0, got {tv_weight!r}")
-    workers = _check_int(workers, "workers", 1)
+    workers = check_int(workers, "workers", 1)
     padded = _pad_light(p, problem)
     xp = x[problem.perm]
     if workers == 1:
@@ -1076,7 +1010,7 @@ def _chunk_grid_start(
         alpha = alpha_from_roughness(np.array([r]))[0]
         spec = np.einsum("l,lckt->ckt", _lobe_filter(alpha, p.shape[0])[:, 0], p)
         if masking:
-            spec = spec * (2.0 / (1.0 + np.sqrt(1.0 + alpha * alpha * ch.tan2)))
+            spec = spec * smith_g1(ch.tan2, alpha)
         spec_rise = spec * ch.one_minus_schlick  # the part of F G1m Spec that R0 scales
         for m in metallic:
             # B = base a + b per channel, linear in the base colour once (r, m) are fixed
@@ -1129,7 +1063,7 @@ def grid_start(
     """
     p = _check_light(light, problem)
     padded = _pad_light(p, problem)
-    workers = _check_int(workers, "workers", 1)
+    workers = check_int(workers, "workers", 1)
     r_grid = np.asarray(roughness, dtype=np.float64)
     m_grid = np.asarray(metallic, dtype=np.float64)
 
@@ -1181,7 +1115,7 @@ def adam_step(
     tuple of numpy.ndarray
         New parameters (in [0, 1]), first and second moments.
     """
-    step = _check_int(step, "step", 1)
+    step = check_int(step, "step", 1)
     b1, b2 = betas
     m1 = b1 * m1 + (1.0 - b1) * grad
     m2 = b2 * m2 + (1.0 - b2) * grad * grad
@@ -1190,13 +1124,8 @@ def adam_step(
 
 
 def optimise(
-    radiance: np.ndarray,
-    weight: np.ndarray,
-    wo_local: np.ndarray,
-    frame: np.ndarray,
+    obs: Observations,
     irradiance: np.ndarray,
-    texel: np.ndarray,
-    resolution: int,
     light: LightQuadrature,
     init: Mapping[str, np.ndarray] | None = None,
     method: str = "freq",
@@ -1206,17 +1135,11 @@ def optimise(
 
     Parameters
     ----------
-    radiance, weight, wo_local : numpy.ndarray
-        Shapes ``(T, K, 3)``, ``(T, K)``, ``(T, K, 3)``: the observations
-        (README "Observations").
-    frame : numpy.ndarray
-        Shape ``(T, 3, 3)``: texel frames (rows tangent, bitangent, normal; world).
+    obs : Observations
+        The capture's T texels x K views (:class:`freqbrdf.artefacts.Observations`);
+        the atlas indices of its texels define the TV neighbours.
     irradiance : numpy.ndarray
         Shape ``(T, 3)``: E at the texel normals (:func:`freqbrdf.light.irradiance`).
-    texel : numpy.ndarray
-        Shape ``(T,)``: flat atlas indices ``i * R + j`` (for TV).
-    resolution : int
-        Atlas size R.
     light : LightQuadrature
         The environment that lit the capture, at the model's degree l*
         (:func:`freqbrdf.light.light_quadrature`).
@@ -1240,23 +1163,40 @@ def optimise(
     shadowing, masking = _check_method(method)
     if not isinstance(settings, OptimiseSettings):
         raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
-    problem = build_problem(
-        radiance, weight, wo_local, frame, irradiance, texel, resolution, settings.dtype, settings.chunk_pairs
-    )
+    problem = build_problem(obs, irradiance, settings.dtype, settings.chunk_pairs)
     basis = mirror_basis(problem, light.lmax)
+    xp = _start(problem, light, init, shadowing, masking, settings, basis)[problem.perm]  # internal order (see Problem)
+    xp, curve = _descend(xp, problem, light, shadowing, masking, settings, basis)
+    x = np.empty_like(xp)
+    x[problem.perm] = xp
+    return unpack_params(x), curve
+
+
+def _start(
+    problem: Problem, light: LightQuadrature, init: Mapping[str, np.ndarray] | None, shadowing: bool, masking: bool,
+    settings: OptimiseSettings, basis: np.ndarray | None,
+) -> np.ndarray:
+    """Packed start parameters (T, 5): ``init``, else the grid start or 0.5 everywhere."""
     if init is not None:
-        x = pack_params(init, problem.n_texels)
-    elif settings.grid_start:
+        return pack_params(init, problem.n_texels)
+    if settings.grid_start:
         # shadowed at a middle roughness: with the unshadowed light (no horizon) 1 of the 64
         # texels of the noise-free test in tests/test_light.py starts in another basin
-        x = grid_start(
+        return grid_start(
             problem, light_terms(np.full(problem.n_texels, 0.5), problem, shadowing, light, settings.workers, basis),
             masking, np.linspace(0.0, 1.0, settings.grid_roughness), np.linspace(0.0, 1.0, settings.grid_metallic),
             settings.workers,
         )
-    else:
-        x = np.full((problem.n_texels, _N_PARAMS), 0.5)
-    xp = x[problem.perm]  # internal order (see Problem)
+    return np.full((problem.n_texels, _N_PARAMS), 0.5)
+
+
+def _descend(
+    xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool,
+    settings: OptimiseSettings, basis: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Adam from ``xp`` (internal order), refitting the shadowed light as roughness moves;
+    returns the parameters and the loss at the start of each iteration."""
+    xp = xp.copy()
     xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     m1 = np.zeros_like(xp)
     m2 = np.zeros_like(xp)
@@ -1288,6 +1228,4 @@ def optimise(
     finally:
         if pool is not None:
             pool.shutdown()
-    x = np.empty_like(xp)
-    x[problem.perm] = xp
-    return unpack_params(x), curve
+    return xp, curve

@@ -7,7 +7,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .io import atomic_path, to_srgb, tonemap
+from .io import atomic_path
+from .colour import to_srgb, tonemap
 
 
 def _pyplot():
@@ -172,7 +173,7 @@ def texel_spectra_figure(path: str | os.PathLike, examples: Mapping[str, dict]) 
         model = ex["ks"] ** 2 * np.exp(-2.0 * (ex["alpha"] * degrees) ** 2) * ex["s_l"]
         ax.semilogy(degrees, ex["s_l"] / scale, "o-", label="S_L (incoming)")
         ax.semilogy(degrees, ex["s_b"] / scale, "s-", label="S_B (outgoing)")
-        ax.semilogy(degrees[1:], model[1:] / scale, "k--", label=f"K_s^2 exp(-2(al)^2) S_L")
+        ax.semilogy(degrees[1:], model[1:] / scale, "k--", label="K_s^2 exp(-2(al)^2) S_L")
         ax.set_title(f"{label}: H = {ex['entropy']:.2f}, K_s = {ex['ks']:.2f}, alpha = {ex['alpha']:.2f}", fontsize=9)
         ax.set_xlabel("degree l")
         ax.grid(alpha=0.3)

@@ -56,7 +56,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .cameras import Cameras, cameras_from_json
-from .io import read_exr, read_json, read_png, tonemap, write_png
+from .io import read_exr, read_json, read_png, write_png
+from .colour import tonemap
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas

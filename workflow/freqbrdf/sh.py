@@ -60,6 +60,8 @@ from typing import Iterator
 
 import numpy as np
 
+from .validation import check_int, lmax_of
+
 __all__ = [
     "sh_index",
     "sh_degrees",
@@ -86,29 +88,11 @@ _BLOCK_VALUES = 1 << 18
 # --------------------------------------------------------------------------
 # validation helpers
 # --------------------------------------------------------------------------
-def _check_int(value: object, name: str, minimum: int) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an int, got {type(value).__name__} {value!r}")
-    value = int(value)
-    if value < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {value}")
-    return value
-
-
 def _check_directions(directions: np.ndarray, name: str = "directions") -> np.ndarray:
     d = np.asarray(directions, dtype=np.float64)
     if d.ndim < 1 or d.shape[-1] != 3:
         raise ValueError(f"{name} must have shape (..., 3), got shape {d.shape}")
     return d
-
-
-def _lmax_from_ncoeffs(n: int, what: str) -> int:
-    lmax = int(round(np.sqrt(n))) - 1
-    if n < 1 or (lmax + 1) ** 2 != n:
-        raise ValueError(
-            f"{what} has {n} coefficients, which is not (lmax + 1)**2 for any lmax >= 0"
-        )
-    return lmax
 
 
 # --------------------------------------------------------------------------
@@ -129,7 +113,7 @@ def sh_index(l: int, m: int) -> int:
     int
         ``l*l + l + m``.
     """
-    l = _check_int(l, "l", 0)
+    l = check_int(l, "l", 0)
     if isinstance(m, (bool, np.bool_)) or not isinstance(m, (int, np.integer)):
         raise TypeError(f"m must be an int, got {type(m).__name__} {m!r}")
     m = int(m)
@@ -140,7 +124,7 @@ def sh_index(l: int, m: int) -> int:
 
 def n_coeffs(lmax: int) -> int:
     """Number of coefficients ``(lmax + 1)**2`` up to degree ``lmax``."""
-    lmax = _check_int(lmax, "lmax", 0)
+    lmax = check_int(lmax, "lmax", 0)
     return (lmax + 1) ** 2
 
 
@@ -157,7 +141,7 @@ def sh_degrees(lmax: int) -> np.ndarray:
     numpy.ndarray
         Shape ``((lmax+1)**2,)``, int64; entry ``i`` is the degree of index ``i``.
     """
-    lmax = _check_int(lmax, "lmax", 0)
+    lmax = check_int(lmax, "lmax", 0)
     return np.repeat(np.arange(lmax + 1, dtype=np.int64), 2 * np.arange(lmax + 1) + 1)
 
 
@@ -344,7 +328,7 @@ def real_sh(directions: np.ndarray, lmax: int) -> np.ndarray:
         If ``lmax`` is not an integer.
     """
     d = _check_directions(directions)
-    lmax = _check_int(lmax, "lmax", 0)
+    lmax = check_int(lmax, "lmax", 0)
     batch = d.shape[:-1]
     d_flat = d.reshape(-1, 3)
     k = (lmax + 1) ** 2
@@ -373,7 +357,7 @@ def eval_sh(coeffs: np.ndarray, directions: np.ndarray) -> np.ndarray:
     c = np.asarray(coeffs, dtype=np.float64)
     if c.ndim not in (1, 2):
         raise ValueError(f"coeffs must have shape (n_coeffs,) or (n_coeffs, C), got shape {c.shape}")
-    lmax = _lmax_from_ncoeffs(c.shape[0], f"coeffs of shape {c.shape}")
+    lmax = lmax_of(c.shape[0], f"coeffs of shape {c.shape}")
     d = _check_directions(directions)
     batch = d.shape[:-1]
     d_flat = d.reshape(-1, 3)
@@ -387,8 +371,8 @@ def eval_sh(coeffs: np.ndarray, directions: np.ndarray) -> np.ndarray:
 # equirectangular grid
 # --------------------------------------------------------------------------
 def _check_grid(height: int, width: int) -> tuple[int, int]:
-    height = _check_int(height, "height", 2)
-    width = _check_int(width, "width", 1)
+    height = check_int(height, "height", 2)
+    width = check_int(width, "width", 1)
     return height, width
 
 
@@ -474,7 +458,7 @@ def project_equirect(image: np.ndarray, lmax: int) -> np.ndarray:
     img = np.asarray(image, dtype=np.float64)
     if img.ndim not in (2, 3):
         raise ValueError(f"image must have shape (H, W) or (H, W, C), got shape {img.shape}")
-    lmax = _check_int(lmax, "lmax", 0)
+    lmax = check_int(lmax, "lmax", 0)
     height, width = img.shape[:2]
     if height < 2 or width < 1:
         raise ValueError(f"image must have H >= 2 and W >= 1, got shape {img.shape}")
@@ -494,14 +478,14 @@ def project_equirect(image: np.ndarray, lmax: int) -> np.ndarray:
 # spectra
 # --------------------------------------------------------------------------
 def power_spectrum(coeffs: np.ndarray, lmax: int | None = None) -> np.ndarray:
-    """Per-degree power ``S(l) = sum_m c_lm**2``.
+    """Per-degree power ``S(l) = sum_m c_lm**2`` of each channel.
 
     Parameters
     ----------
     coeffs : numpy.ndarray
-        Shape ``(..., n_coeffs)`` -- the coefficient axis is LAST here (unlike
-        `project_equirect` / `eval_sh`, whose ``(n_coeffs, C)`` output must be
-        transposed: ``power_spectrum(c.T)``).
+        Shape ``(..., n_coeffs, C)``: the library's one layout of SH
+        coefficients (`project_equirect` returns ``(n_coeffs, C)``,
+        :func:`freqbrdf.shfit.fit_sh` ``(T, n_coeffs, C)``).
     lmax : int, optional
         Degree up to which to compute.  Default: inferred from
         ``n_coeffs = (lmax+1)**2``.  If given, only the first
@@ -510,25 +494,22 @@ def power_spectrum(coeffs: np.ndarray, lmax: int | None = None) -> np.ndarray:
     Returns
     -------
     numpy.ndarray
-        Shape ``(..., lmax + 1)``, float64.
+        Shape ``(..., lmax + 1, C)``, float64.
     """
     c = np.asarray(coeffs, dtype=np.float64)
-    if c.ndim < 1:
-        raise ValueError(f"coeffs must have shape (..., n_coeffs), got shape {c.shape}")
-    n = c.shape[-1]
+    if c.ndim < 2:
+        raise ValueError(f"coeffs must have shape (..., n_coeffs, C), got shape {c.shape}")
+    n = c.shape[-2]
     if lmax is None:
-        lmax = _lmax_from_ncoeffs(n, f"coeffs of shape {c.shape} (last axis)")
+        lmax = lmax_of(n, f"coeffs of shape {c.shape} (axis -2)")
     else:
-        lmax = _check_int(lmax, "lmax", 0)
+        lmax = check_int(lmax, "lmax", 0)
         if (lmax + 1) ** 2 > n:
             raise ValueError(
-                f"lmax={lmax} needs {(lmax + 1) ** 2} coefficients on the last axis, "
-                f"got shape {c.shape}"
+                f"lmax={lmax} needs {(lmax + 1) ** 2} coefficients on axis -2, got shape {c.shape}"
             )
-    k = (lmax + 1) ** 2
-    sq = c[..., :k] ** 2
-    starts = np.arange(lmax + 1) ** 2
-    return np.add.reduceat(sq, starts, axis=-1)
+    sq = c[..., : (lmax + 1) ** 2, :] ** 2
+    return np.add.reduceat(sq, np.arange(lmax + 1) ** 2, axis=-2)
 
 
 # --------------------------------------------------------------------------
@@ -558,7 +539,7 @@ def fibonacci_sphere(n: int) -> np.ndarray:
         Shape ``(n, 3)`` unit vectors; ``y_k = 1 - (2k + 1)/n`` (equal-area
         latitude bands), azimuth advancing by the golden angle.
     """
-    n = _check_int(n, "n", 1)
+    n = check_int(n, "n", 1)
     y = 1.0 - (2.0 * np.arange(n) + 1.0) / n
     return _spiral(y)
 
@@ -577,6 +558,6 @@ def fibonacci_hemisphere(n: int) -> np.ndarray:
         Shape ``(n, 3)`` unit vectors with ``y_k = 1 - (k + 0.5)/n`` in
         ``(0, 1)`` (equal-area bands, so ``y > 0`` and mean ``y = 1/2``).
     """
-    n = _check_int(n, "n", 1)
+    n = check_int(n, "n", 1)
     y = 1.0 - (np.arange(n) + 0.5) / n
     return _spiral(y)

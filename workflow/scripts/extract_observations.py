@@ -4,10 +4,10 @@ import functools
 import time
 from pathlib import Path
 
-import numpy as np
 
+from freqbrdf.artefacts import ObservationsWriter
 from freqbrdf.cameras import cameras_from_json
-from freqbrdf.io import atomic_directory, read_exr, read_json, read_views, write_json
+from freqbrdf.io import atomic_directory, read_exr, read_json, read_views
 from freqbrdf.logs import run_script
 from freqbrdf.meshes import read_ply
 from freqbrdf.mitsuba_setup import setup_mitsuba
@@ -20,8 +20,6 @@ from freqbrdf.observations import (
 )
 from freqbrdf.plots import coverage_figure
 from freqbrdf.raycast import distance_maps, mesh_scene, occlusion_test
-
-ARRAYS = {"radiance": 3, "weight": 0, "wo_local": 3, "incoming": 3}
 
 
 def main(smk, log):
@@ -46,12 +44,8 @@ def _extract(mi, smk, log, settings, tmp):
     incoming_map = band_limited_envmap(read_exr(smk.input.envmap), a_prime)
     log.info("environment band-limited with a' = %.4f (%s rule)", a_prime, settings["band_limit"])
 
-    n_tex, n_views = len(texels), len(cameras)
-    arrays = {
-        name: np.lib.format.open_memmap(tmp / f"{name}.npy", mode="w+", dtype=np.float32,
-                                        shape=(n_tex, n_views, depth) if depth else (n_tex, n_views))
-        for name, depth in ARRAYS.items()
-    }
+    n_tex = len(texels)
+    writer = ObservationsWriter(tmp, texels, cameras.names)
     scene = mesh_scene(mi, smk.input.mesh)
     occluded = functools.partial(occlusion_test, mi, scene)
     distances = edge_free_distances(
@@ -64,25 +58,14 @@ def _extract(mi, smk, log, settings, tmp):
         obs = observe(texels.subset(slice(s, s + chunk)), cameras, images, coverage, incoming_map, occluded,
                       distances=distances, min_coverage=settings["min_coverage"],
                       ray_offset=settings["ray_offset"], footprint_slack=settings["footprint_slack"])
-        for name in ARRAYS:
-            arrays[name][s : s + chunk] = obs[name]
+        writer.write(s, obs)
         nonfinite_pairs += obs["nonfinite"]
         log.info("texels %d-%d of %d observed (%.1f s elapsed)", s, min(s + chunk, n_tex), n_tex,
                  time.perf_counter() - start)
-    views_per_texel = (np.asarray(arrays["weight"]) > 0).sum(axis=1)
-    for array in arrays.values():
-        array.flush()
-    del arrays
-
-    np.savez(tmp / "texels.npz", resolution=texels.resolution, texel=texels.texel, position=texels.position,
-             normal=texels.normal, tangent=texels.tangent, bitangent=texels.bitangent, dilated=texels.dilated)
-    write_json(tmp / "views.json", {
-        "format": "freqbrdf-observations/1",
-        "layout": "see freqbrdf.observations module docstring; arrays are (texel, view[, channel])",
-        "views": list(cameras.names),
+    views_per_texel = writer.views_per_texel()
+    writer.close({
         "poses": smk.wildcards.poses,
         "band_limit": {"rule": settings["band_limit"], "a_prime": a_prime},
-        "texels": n_tex,
         "observed_pairs": int(views_per_texel.sum()),
         "unobserved_texels": int((views_per_texel == 0).sum()),
         "nonfinite_pixels": nonfinite_pixels,

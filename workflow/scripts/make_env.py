@@ -3,7 +3,8 @@
 import functools
 
 from freqbrdf import envmaps
-from freqbrdf.io import tonemap, write_exr, write_png
+from freqbrdf.io import write_exr, write_png
+from freqbrdf.colour import tonemap
 from freqbrdf.logs import run_script
 
 

@@ -1,9 +1,8 @@
 """Rule build_object: procedural mesh (PLY) and ground-truth SVBRDF textures (EXR + PNG)."""
 
-from freqbrdf.io import write_exr
+from freqbrdf.artefacts import write_texture
 from freqbrdf.logs import run_script
 from freqbrdf.meshes import make_mesh, write_ply
-from freqbrdf.plots import texture_preview
 from freqbrdf.textures import svbrdf_textures
 
 
@@ -18,8 +17,7 @@ def main(smk, log):
         grain_amplitude=settings["grain"], grain_texels=settings["grain_texels"],
     )
     for name, texture in textures.items():
-        write_exr(smk.output[name], texture)
-        texture_preview(smk.output[f"{name}_png"], texture, srgb=(name == "base_color"))
+        write_texture(smk.output[name], name, texture, preview=smk.output[f"{name}_png"])
         log.info("%s: %s, range [%.3f, %.3f]", name, texture.shape, texture.min(), texture.max())
 
 

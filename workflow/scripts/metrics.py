@@ -1,87 +1,101 @@
-"""Rule metrics: every number of the benchmark in one tidy CSV (object, env, poses, method, relight_env, metric, value)."""
+"""Rule metrics: every number of the benchmark in one tidy CSV (object, env, poses, method, relight_env, metric, value).
 
+Every path comes from ``snakemake.input``; ``snakemake.params`` says what each
+input list holds, in the same order (see rules/evaluate.smk).
+"""
+
+import warnings
 from functools import cache
-from pathlib import Path
+from itertools import accumulate
 
-import numpy as np
 import pandas as pd
+from scipy.stats import ConstantInputWarning, pearsonr
 
+from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
+from freqbrdf.brdf import TEXTURES
 from freqbrdf.cameras import cameras_from_json
-from freqbrdf.io import atomic_path, read_exr, read_json, read_svbrdf_dir, read_views
+from freqbrdf.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.logs import run_script
-from freqbrdf.metrics import parameter_error_map, parameter_mse, pearson, relight_scores
-from freqbrdf.spectral import observed_texels
+from freqbrdf.metrics import parameter_error_map, parameter_mse, relight_scores
 
 COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
 
 
-@cache
-def _truth(obj):
-    """Ground-truth textures of an object (read once, shared by its captures and methods)."""
-    return read_svbrdf_dir(f"results/objects/{obj}")
+def keyed(keys, paths, per=1):
+    """``{key: path}`` (or ``{key: [paths]}`` with ``per`` > 1) of an input list in the order of ``keys``."""
+    if len(paths) != per * len(keys):
+        raise ValueError(f"metrics: {len(paths)} input paths for {len(keys)} keys x {per}")
+    return {tuple(k): (paths[i * per] if per == 1 else list(paths[i * per : (i + 1) * per])) for i, k in enumerate(keys)}
 
 
-@cache
-def _scored_texels(obj, env, poses):
-    """Flat atlas indices of the texels some training view observes (what parameter MSE scores)."""
-    obs = Path(f"results/observations/{obj}/{env}/{poses}")
-    texel = np.load(obs / "texels.npz")["texel"]
-    return texel[observed_texels(np.load(obs / "weight.npy", mmap_mode="r"))]
+def correlation(x, y):
+    """Pearson's r; NaN when either sample is constant (undefined)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConstantInputWarning)
+        return float(pearsonr(x, y).statistic)
 
 
-def parameter_rows(synthetic, entropy_methods):
-    """mse_* of every method on every synthetic capture; pearson_entropy_error of the entropy methods."""
+def parameter_rows(smk):
+    """mse_* of every method on every synthetic capture; pearson_entropy_error of the entropy-scored methods."""
+    p = smk.params
+    truth_files = keyed([(o,) for o in p.objects], smk.input.truth, per=len(TEXTURES))
+    truth = cache(lambda o: read_svbrdf(dict(zip(TEXTURES, truth_files[(o,)]))))
+    captures = keyed(p.captures, smk.input.observations)
+    entropies = keyed(p.captures, smk.input.entropy)
+    scored = cache(lambda key: (lambda obs: obs.texels.texel[obs.observed])(read_observations(captures[key])))
     rows = []
-    for obj, env, poses, method in synthetic:
-        truth = _truth(obj)
-        estimate = read_svbrdf_dir(f"results/estimates/{obj}/{env}/{poses}/{method}")
-        texels = _scored_texels(obj, env, poses)
+    for (obj, env, poses, method), directory in keyed(p.synthetic, smk.input.estimates).items():
+        estimate, texels = read_svbrdf(directory), scored((obj, env, poses))
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")
-        rows += [key | dict(metric=f"mse_{k}", value=v) for k, v in parameter_mse(truth, estimate, texels).items()]
-        if method in entropy_methods:
-            entropy = read_exr(f"results/entropy/{obj}/{env}/{poses}/entropy.exr").ravel()
-            error = parameter_error_map(truth, estimate).ravel()
-            rows.append(key | dict(metric="pearson_entropy_error", value=pearson(entropy[texels], error[texels])))
+        rows += [key | dict(metric=f"mse_{k}", value=v) for k, v in parameter_mse(truth(obj), estimate, texels).items()]
+        if method in p.entropy_methods:
+            entropy = read_entropy(entropies[(obj, env, poses)]).atlas.ravel()
+            error = parameter_error_map(truth(obj), estimate).ravel()
+            rows.append(key | dict(metric="pearson_entropy_error", value=correlation(entropy[texels], error[texels])))
     return rows
 
 
-@cache
-def _reference(obj, relight_env, min_coverage):
-    """Reference test views of an object under an environment, their names and scored-pixel masks."""
-    test = Path(f"results/captures/{obj}/{relight_env}/test")
-    cameras = cameras_from_json(read_json(test / "cameras.json"), test / "cameras.json")
+def reference_views(test, min_coverage):
+    """Reference test views of a capture directory: names, images and scored-pixel masks."""
+    cameras = cameras_from_json(read_json(f"{test}/cameras.json"), f"{test}/cameras.json")
     images, coverage, nonfinite = read_views(test, cameras.names, cameras.width, cameras.height)
     if nonfinite:
         raise ValueError(f"{test}: {nonfinite} NaN/Inf pixel values in the reference views")
     return cameras.names, list(images), list(coverage >= min_coverage - 1e-6)  # PNG quantisation: 255 / 255
 
 
-def relight_rows(relights, settings, log):
+def relight_rows(smk, log):
     """psnr_h, psnr_l, ssim, mse (means over the test views) of every relit image set."""
+    settings = smk.params.metrics
+    tests = keyed(smk.params.references, smk.input.references)
+    reference = cache(lambda key: reference_views(tests[key], settings["mask_min_coverage"]))
     rows = []
-    for obj, env, poses, method, relight_env in relights:
-        names, refs, masks = _reference(obj, relight_env, settings["mask_min_coverage"])
-        relit = Path(f"results/relight/{obj}/{env}/{poses}/{method}/{relight_env}")
-        preds = [read_exr(relit / "images" / f"{name}.exr") for name in names]
+    for (obj, env, poses, method, relight_env), relit in keyed(smk.params.relights, smk.input.relit).items():
+        names, refs, masks = reference((obj, relight_env))
+        preds = [read_exr(f"{relit}/images/{name}.exr") for name in names]
         scores = relight_scores(preds, refs, masks, clip=settings["hdr_clip"], normalise=settings["hdr_normalise"])
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env=relight_env)
         rows += [key | dict(metric=k, value=v) for k, v in scores.items()]
-    log.info("scored %d relit image sets", len(relights))
+    log.info("scored %d relit image sets", len(smk.params.relights))
     return rows
 
 
-def _benchmark(path):
+def benchmark(path):
     """Wall-clock seconds and peak resident memory (MB) of one Snakemake benchmark file."""
     table = pd.read_csv(path, sep="\t")
     return float(table["s"].mean()), float(pd.to_numeric(table["max_rss"], errors="coerce").max())
 
 
-def timing_rows(timings):
+def timing_rows(smk):
     """time_s and max_rss_mb of each method's own job, time_total_s of everything it needs
     after the observations, and speed_ratio_vs_mitsuba (mitsuba's total / the method's)."""
+    counts = [n for *_, n in smk.params.timings]
+    ends = list(accumulate(counts))
+    if ends and ends[-1] != len(smk.input.benchmarks):
+        raise ValueError(f"metrics: {len(smk.input.benchmarks)} benchmark inputs, params.timings lists {ends[-1]}")
     rows, totals = [], {}
-    for obj, env, poses, method, files in timings:
-        runs = [_benchmark(f) for f in files]
+    for (obj, env, poses, method, n), end in zip(smk.params.timings, ends):
+        runs = [benchmark(f) for f in smk.input.benchmarks[end - n : end]]
         seconds, rss = runs[-1]  # the method's own rule is listed last
         totals[obj, env, poses, method] = sum(s for s, _ in runs)
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")
@@ -96,8 +110,7 @@ def timing_rows(timings):
 
 
 def main(smk, log):
-    p = smk.params
-    rows = parameter_rows(p.synthetic, p.entropy_methods) + relight_rows(p.relights, p.metrics, log) + timing_rows(p.timings)
+    rows = parameter_rows(smk) + relight_rows(smk, log) + timing_rows(smk)
     table = pd.DataFrame(rows, columns=COLUMNS)
     with atomic_path(smk.output[0]) as tmp:
         table.to_csv(tmp, index=False, float_format="%.6g")

@@ -6,12 +6,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from freqbrdf.artefacts import read_svbrdf, write_svbrdf
 from freqbrdf.cameras import cameras_from_json
-from freqbrdf.inverse import TEXTURES, InverseSettings, constant_textures, optimise_textures
-from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_json, read_svbrdf_dir, read_views, write_exr
+from freqbrdf.inverse import InverseSettings, constant_textures, optimise_textures
+from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_json, read_views
 from freqbrdf.logs import run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.plots import loss_figure, texture_preview
+from freqbrdf.plots import loss_figure
 
 
 def start_textures(smk) -> dict[str, np.ndarray]:
@@ -19,11 +20,11 @@ def start_textures(smk) -> dict[str, np.ndarray]:
     resolution = smk.params.resolution
     if "init" not in smk.input.keys():
         return constant_textures(resolution)
-    start = read_svbrdf_dir(smk.input.init)
-    if start["base_color"].shape[:2] != (resolution, resolution):
-        raise ValueError(f"{smk.input.init}: textures are {start['base_color'].shape[:2]}, "
+    start = read_svbrdf(smk.input.init)
+    if start.resolution != resolution:
+        raise ValueError(f"{smk.input.init}: textures are {start.resolution}x{start.resolution}, "
                          f"config textures.resolution is {resolution}")
-    return start
+    return dict(start)
 
 
 def main(smk, log):
@@ -44,9 +45,7 @@ def main(smk, log):
                                start_textures(smk), settings, progress=progress)
 
     with atomic_directory(smk.output.estimate) as tmp:
-        for name in TEXTURES:
-            write_exr(tmp / f"{name}.exr", result.textures[name])
-            texture_preview(tmp / f"{name}.png", result.textures[name], srgb=(name == "base_color"))
+        write_svbrdf(tmp, result.textures)
         steps = np.arange(len(result.loss))
         table = pd.DataFrame({"iteration": steps, "loss": result.loss, "epoch": steps // len(cameras) + 1,
                               "view": [cameras.names[k] for k in result.view]})

@@ -4,7 +4,8 @@ import time
 from pathlib import Path
 
 from freqbrdf.cameras import cameras_from_json
-from freqbrdf.io import atomic_directory, read_exr, read_json, read_svbrdf_dir, write_exr
+from freqbrdf.artefacts import read_svbrdf
+from freqbrdf.io import atomic_directory, read_exr, read_json, write_exr
 from freqbrdf.logs import run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import contact_sheet
@@ -19,7 +20,7 @@ def main(smk, log):
     if (cameras.width, cameras.height) != (render["resolution"], render["resolution"]):
         raise ValueError(f"{test}/cameras.json: views are {cameras.width}x{cameras.height}, "
                          f"render.resolution is {render['resolution']}")
-    textures = read_svbrdf_dir(smk.input.estimate)
+    textures = read_svbrdf(smk.input.estimate)
     # Exactly the reference renders' scene (render_capture): same mesh, environment,
     # integrator, film, sample count and seed, so that a perfect estimate
     # reproduces the reference image and the score carries no Monte Carlo noise floor.

@@ -5,7 +5,9 @@ import time
 import numpy as np
 
 from freqbrdf.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsics, mitsuba_to_world
-from freqbrdf.io import atomic_directory, read_exr, read_svbrdf, write_exr, write_json, write_png
+from freqbrdf.artefacts import read_svbrdf
+from freqbrdf.brdf import TEXTURES
+from freqbrdf.io import atomic_directory, read_exr, write_exr, write_json, write_png
 from freqbrdf.logs import run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import contact_sheet
@@ -33,7 +35,7 @@ def main(smk, log):
 
 def _render_into(mi, smk, log, cameras, to_world, frame, tmp):
     p = smk.params
-    textures = read_svbrdf(smk.input.base_color, smk.input.roughness, smk.input.metallic)
+    textures = read_svbrdf({name: smk.input[name] for name in TEXTURES})
     bsdf = principled_bsdf(mi, **textures)
     scene = capture_scene(
         mi, smk.input.mesh, bsdf, read_exr(smk.input.envmap),

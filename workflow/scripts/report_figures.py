@@ -5,22 +5,19 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
+from freqbrdf.brdf import TEXTURES
 from freqbrdf.figures import atlas_masks, capture_maps_figure, relight_figure
-from freqbrdf.io import read_exr, read_svbrdf, read_svbrdf_dir
+from freqbrdf.io import read_exr
 from freqbrdf.logs import run_script
-from freqbrdf.spectral import observed_texels
 
 
 def maps(smk, log):
-    obs = Path(smk.input.observations)
-    texel = np.load(obs / "texels.npz")["texel"]
-    observed = observed_texels(np.load(obs / "weight.npy", mmap_mode="r"))
-    entropy = read_exr(Path(smk.input.entropy) / "entropy.exr")
-    if entropy.ndim == 3:
-        entropy = entropy[..., 0]
-    inside, seen = atlas_masks(entropy.shape[0], texel, observed)
-    truth = read_svbrdf(*smk.input.truth) if smk.input.truth else None
-    estimates = {method: read_svbrdf_dir(d) for method, d in zip(smk.params.methods, smk.input.estimates)}
+    obs = read_observations(smk.input.observations)
+    entropy = read_entropy(smk.input.entropy).atlas
+    inside, seen = atlas_masks(entropy.shape[0], obs.texels.texel, obs.observed)
+    truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth))) if smk.input.truth else None
+    estimates = {method: read_svbrdf(d) for method, d in zip(smk.params.methods, smk.input.estimates)}
     w = smk.wildcards
     mse = capture_maps_figure(smk.output[0], truth, estimates, entropy, inside, seen,
                               f"{w.object} captured under {w.env} ({w.poses} poses): "
@@ -42,10 +39,9 @@ def relight(smk, log):
     psnr = metrics[(metrics.object == w.object) & (metrics.env == w.env) & (metrics.poses == w.poses)
                    & (metrics.metric == "psnr_h")]
     scores = {(r, m): float(v) for r, m, v in zip(psnr.relight_env, psnr.method, psnr.value)}
-    references, relit = {}, {}
+    references = {r: first_view(Path(d)) for r, d in zip(smk.params.references, smk.input.references)}
+    relit = {}
     for (method, relight_env), directory in zip(smk.params.relights, smk.input.relit):
-        if relight_env not in references:
-            references[relight_env] = first_view(Path(f"results/captures/{w.object}/{relight_env}/test"))
         relit.setdefault(relight_env, {})[method] = first_view(Path(directory))
     relight_figure(smk.output[0], references, relit, scores,
                    f"{w.object} captured under {w.env}: first test view relit under held-out environments")
