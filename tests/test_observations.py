@@ -18,7 +18,7 @@ from freqbrdf.observations import (
     tangent_frame,
 )
 from freqbrdf.raycast import distance_maps, mesh_scene, occlusion_test
-from freqbrdf.render import _eval_environment, mask_scene, render_views
+from freqbrdf.render import eval_environment, mask_scene, render_views
 from freqbrdf.sh import eval_sh, equirect_directions, fibonacci_sphere, sh_degrees
 
 SIZE, FOV = 128, 35.0
@@ -193,7 +193,7 @@ def test_sample_equirect_matches_mitsuba_envmap(mi):
     env = rng.uniform(0.1, 2.0, size=(32, 64, 3)).astype(np.float32)
     scene = mi.load_dict({"type": "scene", "env": {"type": "envmap", "bitmap": mi.Bitmap(env)}})
     dirs = fibonacci_sphere(500)
-    np.testing.assert_allclose(sample_equirect(env, dirs), _eval_environment(mi, scene, dirs), rtol=2e-4)
+    np.testing.assert_allclose(sample_equirect(env, dirs), eval_environment(mi, scene, dirs), rtol=2e-4)
 
 
 def test_band_limit_filters_each_degree_by_the_gaussian():

@@ -6,7 +6,7 @@ import pytest
 from freqbrdf.cameras import Cameras, hemisphere_rig, intrinsics, look_at, mitsuba_to_world, project
 from freqbrdf.meshes import make_mesh, write_ply
 from freqbrdf.render import (
-    _eval_environment,
+    eval_environment,
     capture_scene,
     mask_scene,
     principled_bsdf,
@@ -131,7 +131,7 @@ def test_equirect_grid_matches_mitsuba_envmap(mi):
     env = rng.uniform(0.1, 1.0, size=(16, 32, 3)).astype(np.float32)
     scene = mi.load_dict({"type": "scene", "env": {"type": "envmap", "bitmap": mi.Bitmap(env)}})
     dirs = equirect_directions(16, 32)[1:-1].reshape(-1, 3)  # the pole rows are single points
-    np.testing.assert_allclose(_eval_environment(mi, scene, dirs), env[1:-1].reshape(-1, 3), rtol=1e-4)
+    np.testing.assert_allclose(eval_environment(mi, scene, dirs), env[1:-1].reshape(-1, 3), rtol=1e-4)
 
 
 def test_sunsky_puts_the_sun_where_asked(mi):

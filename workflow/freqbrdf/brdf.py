@@ -2,8 +2,9 @@
 
 Mitsuba's principled BSDF (Burley 2012) is parametrised by base colour,
 roughness and metallic; the frequency-domain model (Wiersma et al. 2024,
-section 4.1, Eqs. 8-10) by a diffuse albedo K_d, a specular reflectance K_s
-at normal incidence and a GGX width alpha. This module maps between the two
+sections 3.2 and 4.1, Eqs. 8-11) by a diffuse albedo K_d, a specular
+reflectance K_s at normal incidence and a GGX width alpha. This module maps
+between the two (the paper's Eqs. 26-30)
 and holds the constants both sides share.
 """
 
@@ -57,7 +58,7 @@ def tan2_theta(cos_theta: np.ndarray) -> np.ndarray:
 
 
 def smith_g1(tan2: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """GGX Smith masking of one direction, ``2 / (1 + sqrt(1 + alpha^2 tan^2 theta))`` (paper Eq. 8).
+    """GGX Smith masking of one direction, ``2 / (1 + sqrt(1 + alpha^2 tan^2 theta))`` (the G_alpha of paper Eq. 11).
 
     Parameters
     ----------

@@ -148,28 +148,28 @@ def hemisphere_rig(n: int, distance: float, azimuth_deg: float = 0.0) -> np.ndar
 
 
 def project(points: np.ndarray, K: np.ndarray, world_to_camera: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Project world points into one view.
+    """Project world points into one view or several.
 
     Parameters
     ----------
     points : ndarray, shape (P, 3)
         World positions.
-    K : ndarray, shape (3, 3)
-    world_to_camera : ndarray, shape (4, 4)
+    K : ndarray, shape (..., 3, 3)
+        Intrinsics of each view (``...``: none for one view, (V,) for V views).
+    world_to_camera : ndarray, shape (..., 4, 4)
 
     Returns
     -------
-    pixels : ndarray, shape (P, 2)
-        Continuous (x, y) pixel coordinates.
-    depth : ndarray, shape (P,)
+    pixels : ndarray, shape (P, ..., 2)
+        Continuous (x, y) pixel coordinates (inf/NaN where depth is 0).
+    depth : ndarray, shape (P, ...)
         Camera-space z (positive in front of the camera).
     """
-    cam = points @ world_to_camera[:3, :3].T + world_to_camera[:3, 3]
-    depth = cam[:, 2]
-    uvw = cam @ K.T
+    cam = np.einsum("...ij,pj->p...i", world_to_camera[..., :3, :3], points) + world_to_camera[..., :3, 3]
+    uvw = np.einsum("...ij,p...j->p...i", K, cam)
     with np.errstate(divide="ignore", invalid="ignore"):
-        pixels = uvw[:, :2] / uvw[:, 2:3]
-    return pixels, depth
+        pixels = uvw[..., :2] / uvw[..., 2:3]
+    return pixels, cam[..., 2]
 
 
 def mitsuba_to_world(world_to_camera: np.ndarray) -> np.ndarray:

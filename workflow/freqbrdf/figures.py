@@ -15,7 +15,7 @@ import numpy as np
 
 from .colour import to_srgb, tonemap
 from .metrics import parameter_error_map
-from .plots import _pyplot, _save
+from .plots import pyplot, save_figure
 
 GREY = "0.85"  # outside the UV atlas (or not scored)
 
@@ -93,7 +93,7 @@ def capture_maps_figure(
         Method -> parameter MSE over observed texels (empty without ground truth),
         the numbers printed in the row labels.
     """
-    plt = _pyplot()
+    plt = pyplot()
     errors = {m: parameter_error_map(truth, est) for m, est in estimates.items()} if truth is not None else {}
     vmax = error_scale(errors, seen)
     rows = [("ground truth", truth)] + list(estimates.items())
@@ -139,7 +139,7 @@ def capture_maps_figure(
     if shown_error is not None:
         fig.colorbar(shown_error, ax=axes[1:, 3].tolist(), shrink=0.5, label="squared error")
     fig.suptitle(title, fontsize=10)
-    _save(fig, path, dpi=100)
+    save_figure(fig, path, dpi=100)
     return mse
 
 
@@ -165,7 +165,7 @@ def relight_figure(
     title : str
         Figure title.
     """
-    plt = _pyplot()
+    plt = pyplot()
     methods = list(dict.fromkeys(m for per_env in relit.values() for m in per_env))
     envs = list(references)
     if not envs:
@@ -173,7 +173,7 @@ def relight_figure(
         ax.text(0.5, 0.5, "no relighting renders for this capture", ha="center", va="center")
         ax.set_axis_off()
         fig.suptitle(title, fontsize=10)
-        _save(fig, path, dpi=100)
+        save_figure(fig, path, dpi=100)
         return
     cols = 1 + len(methods)
     fig, axes = plt.subplots(len(envs), cols, figsize=(cols * 1.9, len(envs) * 2.0 + 0.4), squeeze=False,
@@ -196,4 +196,4 @@ def relight_figure(
     for ax, name in zip(axes[0], ("ground truth", *methods)):
         ax.set_title(name, fontsize=9)
     fig.suptitle(title, fontsize=10)
-    _save(fig, path, dpi=100)
+    save_figure(fig, path, dpi=100)

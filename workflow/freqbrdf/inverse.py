@@ -1,6 +1,6 @@
 """Differentiable-rendering baseline: SVBRDF textures by Mitsuba 3's ``prb`` and Adam.
 
-The baseline of METHOD.md section 7. The object's mesh carries a
+The baseline of the paper's section 5.1 (Mitsuba 3, one ray per pixel and view). The object's mesh carries a
 ``principled`` BSDF whose base colour, roughness and metallic are float32
 ``bitmap`` textures (built exactly as the ground-truth renders build theirs,
 :func:`freqbrdf.render.principled_bsdf`, so texel (i, j) sits at
@@ -149,7 +149,7 @@ class InverseResult:
 
 
 def constant_textures(resolution: int, value: float = 0.5) -> dict[str, np.ndarray]:
-    """Constant start textures (the baseline starts from 0.5, METHOD.md section 7).
+    """Constant start textures (the baseline starts from 0.5, as in the paper's section 5.1).
 
     Returns
     -------

@@ -11,7 +11,7 @@ float32 unless stated; written by the ``extract_observations`` rule):
 - ``radiance.npy`` (T, K, 3): outgoing radiance B_k(p), bilinear from the HDR
   view; 0 where not observed.
 - ``weight.npy`` (T, K): cos(theta_o) where observed, else 0 (the sample
-  weight s_j of METHOD.md section 3).
+  weight of the paper's SH fit, section 4.2 and Fig. 3).
 - ``wo_local.npy`` (T, K, 3): unit direction toward the camera in the local
   frame (x = tangent, y = bitangent, z = normal). The mirror direction in the
   same frame is ``(-x, -y, z)``.
@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cameras import Cameras
+from .cameras import Cameras, project
 from .meshes import Mesh
-from .sh import equirect_directions, project_equirect, real_sh, sh_degrees
+from .sh import equirect_directions, eval_sh, project_equirect, sh_degrees
 
 Occluded = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
@@ -195,7 +195,8 @@ def rasterise_uv(mesh: Mesh, resolution: int, dilate_texels: float = 1.0, chunk_
 
 
 def band_limit_parameter(n_views: int, rule: str) -> float:
-    """Band-limit width a' from the number of views (METHOD.md section 3).
+    """Band-limit width a' from the number of views (paper section 4.2: a signal sampled
+    n times is band-limited to about n^(1/2), so roughness below a' = K^(-1/2) is not recovered).
 
     Parameters
     ----------
@@ -234,12 +235,7 @@ def band_limited_envmap(envmap: np.ndarray, a_prime: float, lmax: int | None = N
         raise ValueError(f"a_prime must be > 0, got {a_prime}")
     lmax = int(np.ceil(3.5 / a_prime)) if lmax is None else int(lmax)
     coeffs = project_equirect(envmap, lmax) * np.exp(-((a_prime * sh_degrees(lmax)) ** 2))[:, None]
-    h, w = envmap.shape[:2]
-    dirs = equirect_directions(h, w).reshape(-1, 3)
-    out = np.empty((h * w, envmap.shape[2]))
-    for start in range(0, len(dirs), 16384):
-        out[start : start + 16384] = real_sh(dirs[start : start + 16384], lmax) @ coeffs
-    return out.reshape(h, w, -1).astype(np.float32)
+    return eval_sh(coeffs, equirect_directions(*envmap.shape[:2])).astype(np.float32)
 
 
 def sample_equirect(envmap: np.ndarray, dirs: np.ndarray) -> np.ndarray:
@@ -399,29 +395,15 @@ def observe(
     """
     n_tex, n_views = len(texels), len(cameras)
     p, n = texels.position, texels.normal
-    centres = cameras.centres
-    to_cam = centres[None, :, :] - p[:, None, :]  # (T, K, 3)
+    to_cam = cameras.centres[None, :, :] - p[:, None, :]  # (T, K, 3)
     dist = np.linalg.norm(to_cam, axis=-1)
     wo = to_cam / dist[..., None]
     cos_o = np.einsum("tkc,tc->tk", wo, n)
-
-    R = cameras.world_to_camera[:, :3, :3]
-    t = cameras.world_to_camera[:, :3, 3]
-    cam = np.einsum("kij,tj->tki", R, p) + t[None]
-    pix = np.einsum("kij,tkj->tki", cameras.K, cam)
-    depth = cam[..., 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x, y = pix[..., 0] / pix[..., 2], pix[..., 1] / pix[..., 2]
+    pix, depth = project(p, cameras.K, cameras.world_to_camera)  # (T, K, 2), (T, K)
+    x, y = pix[..., 0], pix[..., 1]
     inside = (depth > 0) & (x >= 0.5) & (x <= cameras.width - 0.5) & (y >= 0.5) & (y <= cameras.height - 0.5)
-    candidate = inside & (cos_o > 0.0)
-
-    ti, ki = np.nonzero(candidate)
-    origins = p[ti] + ray_offset * n[ti]
-    blocked = occluded(origins, wo[ti, ki], np.linalg.norm(centres[ki] - origins, axis=1))
-    ti, ki = ti[~blocked], ki[~blocked]
-    mask, _ = bilinear_views(coverage, ki, x[ti, ki], y[ti, ki])
-    keep = mask >= min_coverage
-    ti, ki = ti[keep], ki[keep]
+    ti, ki = _visible_pairs(texels, cameras, coverage, occluded, wo, inside & (cos_o > 0.0), x, y, min_coverage,
+                            ray_offset)
     if distances is not None:
         d_texel = dist[ti, ki]
         pixel_size = d_texel / cameras.K[ki, 0, 0]  # world size of one pixel at the texel
@@ -430,7 +412,6 @@ def observe(
         keep = (gap <= slack[:, None]).all(axis=1)  # NaN (edge pixels) fails
         ti, ki = ti[keep], ki[keep]
     values, finite = bilinear_views(images, ki, x[ti, ki], y[ti, ki])
-    nonfinite = int((~finite).sum())
     ti, ki, values = ti[finite], ki[finite], values[finite]
 
     radiance = np.zeros((n_tex, n_views, 3), np.float32)
@@ -441,4 +422,21 @@ def observe(
     wo_local = np.einsum("tij,tkj->tki", frame, wo).astype(np.float32)
     wr = 2.0 * cos_o[..., None] * n[:, None, :] - wo
     incoming = sample_equirect(incoming_map, wr).astype(np.float32)
-    return {"radiance": radiance, "weight": weight, "wo_local": wo_local, "incoming": incoming, "nonfinite": nonfinite}
+    return {"radiance": radiance, "weight": weight, "wo_local": wo_local, "incoming": incoming,
+            "nonfinite": int((~finite).sum())}
+
+
+def _visible_pairs(
+    texels: SurfaceTexels, cameras: Cameras, coverage: np.ndarray, occluded: Occluded, wo: np.ndarray,
+    candidate: np.ndarray, x: np.ndarray, y: np.ndarray, min_coverage: float, ray_offset: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Texel and view indices of the ``candidate`` (T, K) pairs that no surface occludes and
+    whose bilinear footprint the object mask covers."""
+    p, n = texels.position, texels.normal
+    ti, ki = np.nonzero(candidate)
+    origins = p[ti] + ray_offset * n[ti]
+    blocked = occluded(origins, wo[ti, ki], np.linalg.norm(cameras.centres[ki] - origins, axis=1))
+    ti, ki = ti[~blocked], ki[~blocked]
+    mask, _ = bilinear_views(coverage, ki, x[ti, ki], y[ti, ki])
+    keep = mask >= min_coverage
+    return ti[keep], ki[keep]

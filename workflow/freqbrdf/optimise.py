@@ -1,4 +1,4 @@
-"""Gradient-descent SVBRDF estimator: the "mixed" pipeline (METHOD.md sections 4 and 5).
+"""Gradient-descent SVBRDF estimator: the "mixed" pipeline (paper sections 4.1 and 4.3, Eqs. 11 and 13).
 
 Per texel p the parameters are the base colour (RGB), roughness r and
 metallic m, all in [0, 1]; ``alpha = max(r^2, 1e-3)`` as in Mitsuba's
@@ -124,7 +124,7 @@ def _check_method(method: str) -> tuple[bool, bool]:
 
 @dataclass(frozen=True)
 class OptimiseSettings:
-    """Settings of `optimise` (defaults: METHOD.md section 5 and the authors' code).
+    """Settings of `optimise` (defaults: paper section 4.3 and the authors' code).
 
     Attributes
     ----------
@@ -942,7 +942,7 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool) -
 def loss_and_gradient(
     x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float = 1e-3, workers: int = 1
 ) -> tuple[float, np.ndarray]:
-    """Objective of METHOD section 5 and its analytic gradient, light terms held fixed.
+    """Objective of paper Eq. 13 plus total variation (section 4.3) and its analytic gradient, light terms held fixed.
 
     ``loss = mean_{pairs, c} |B - B_obs| + tv_weight * TV`` (module docstring).
     With ``g = sign(B - B_obs) / (3 N)`` and ``c5 = (1 - cos theta_o)^5``:

@@ -11,7 +11,9 @@ from .io import atomic_path
 from .colour import to_srgb, tonemap
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib's pyplot on the non-interactive Agg backend, imported on first use
+    (importing this module stays cheap for rules that draw nothing)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -20,10 +22,11 @@ def _pyplot():
     return plt
 
 
-def _save(fig, path: str | os.PathLike, dpi: int = 110) -> None:
+def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> None:
+    """Write ``fig`` as PNG atomically and release it."""
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png")
-    _pyplot().close(fig)
+    pyplot().close(fig)
 
 
 def env_spectrum_figure(path: str | os.PathLike, name: str, envmap: np.ndarray, spectrum: np.ndarray, above: int = 4) -> None:
@@ -43,7 +46,7 @@ def env_spectrum_figure(path: str | os.PathLike, name: str, envmap: np.ndarray, 
     """
     from .envmaps import high_frequency_fraction
 
-    plt = _pyplot()
+    plt = pyplot()
     fig, (ax_img, ax_spec) = plt.subplots(1, 2, figsize=(11, 3.4), gridspec_kw={"width_ratios": [1.6, 1]})
     ax_img.imshow(tonemap(envmap))
     ax_img.set_title(f"{name} (tone-mapped equirect; top row = +Y)")
@@ -57,7 +60,7 @@ def env_spectrum_figure(path: str | os.PathLike, name: str, envmap: np.ndarray, 
     ax_spec.set_xlabel("degree l")
     ax_spec.set_ylabel("S(l) / total power")
     ax_spec.grid(alpha=0.3)
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def spectra_comparison_figure(path: str | os.PathLike, spectra: Mapping[str, np.ndarray]) -> None:
@@ -67,7 +70,7 @@ def spectra_comparison_figure(path: str | os.PathLike, spectra: Mapping[str, np.
     ----------
     spectra : mapping of str to ndarray, shape (lmax + 1, 4)
     """
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4))
     for name, spectrum in spectra.items():
         lum = spectrum[:, 3]
@@ -77,7 +80,7 @@ def spectra_comparison_figure(path: str | os.PathLike, spectra: Mapping[str, np.
     ax.set_title("Frequency content of the environments")
     ax.grid(alpha=0.3)
     ax.legend()
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def contact_sheet(path: str | os.PathLike, images: list[np.ndarray], columns: int = 4) -> None:
@@ -120,7 +123,7 @@ def coverage_figure(path: str | os.PathLike, resolution: int, texel: np.ndarray,
     title : str
         Figure title.
     """
-    plt = _pyplot()
+    plt = pyplot()
     image = np.full(resolution * resolution, np.nan)
     image[texel] = views_per_texel
     fig, ax = plt.subplots(figsize=(5.2, 4.4))
@@ -131,7 +134,7 @@ def coverage_figure(path: str | os.PathLike, resolution: int, texel: np.ndarray,
     ax.set_ylabel("v")
     ax.set_title(title)
     fig.colorbar(shown, ax=ax, label="views observing the texel (grey: outside the atlas)")
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def entropy_figure(path: str | os.PathLike, entropy_atlas: np.ndarray, valid: np.ndarray, title: str) -> None:
@@ -144,7 +147,7 @@ def entropy_figure(path: str | os.PathLike, entropy_atlas: np.ndarray, valid: np
     valid : ndarray, shape (R, R), bool
         Texels inside the atlas; the rest is drawn grey.
     """
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(5.2, 4.4))
     cmap = plt.get_cmap("turbo").with_extremes(bad="0.85")
     shown = ax.imshow(np.where(valid, entropy_atlas, np.nan), cmap=cmap, vmin=0.0, vmax=1.0,
@@ -153,7 +156,7 @@ def entropy_figure(path: str | os.PathLike, entropy_atlas: np.ndarray, valid: np
     ax.set_ylabel("v")
     ax.set_title(title)
     fig.colorbar(shown, ax=ax, label="normalised entropy")
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def texel_spectra_figure(path: str | os.PathLike, examples: Mapping[str, dict]) -> None:
@@ -165,7 +168,7 @@ def texel_spectra_figure(path: str | os.PathLike, examples: Mapping[str, dict]) 
         Each dict holds ``s_b`` and ``s_l`` (lmax + 1,) luminance spectra,
         ``ks`` and ``alpha`` of the grid estimate and ``entropy``.
     """
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(examples), figsize=(4.0 * len(examples), 3.3), squeeze=False)
     for ax, (label, ex) in zip(axes[0], examples.items()):
         degrees = np.arange(len(ex["s_l"]))
@@ -179,16 +182,16 @@ def texel_spectra_figure(path: str | os.PathLike, examples: Mapping[str, dict]) 
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("power / incoming power")
     axes[0, 0].legend(fontsize=7)
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def loss_figure(path: str | os.PathLike, curve: np.ndarray, title: str, ylabel: str = "L1 + TV loss") -> None:
     """Optimisation loss per iteration (log scale; for ``freq``, jumps mark refits of the light)."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(5, 3.2))
     ax.semilogy(np.arange(len(curve)), curve)
     ax.set_xlabel("iteration")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.grid(alpha=0.3)
-    _save(fig, path)
+    save_figure(fig, path)

@@ -245,7 +245,7 @@ def _cell_directions(height: int, width: int, rows: np.ndarray, cols: np.ndarray
     return dirs.reshape(len(rows), s * s, 3), np.maximum(st, 1e-12).reshape(len(rows), s * s)
 
 
-def _eval_environment(mi: ModuleType, scene, dirs: np.ndarray) -> np.ndarray:
+def eval_environment(mi: ModuleType, scene, dirs: np.ndarray) -> np.ndarray:
     """Radiance of the scene's environment emitter seen along ``dirs`` (P, 3) -> (P, 3)."""
     # Rays that escape an empty scene give exactly the interaction records the
     # integrators pass to the emitter; a hand-made SurfaceInteraction does not
@@ -293,14 +293,14 @@ def bake_emitter(
     for start in range(0, height * width, 65536):
         rows, cols = rows_all[start : start + 65536], cols_all[start : start + 65536]
         dirs, w = _cell_directions(height, width, rows, cols, supersample)
-        values = _eval_environment(mi, scene, dirs.reshape(-1, 3)).reshape(len(rows), -1, 3)
+        values = eval_environment(mi, scene, dirs.reshape(-1, 3)).reshape(len(rows), -1, 3)
         out[rows, cols] = np.einsum("ps,psc->pc", w, values) / w.sum(axis=1, keepdims=True)
     if hotspot is not None:
         grid = equirect_directions(height, width)
         angle = np.arccos(np.clip(grid @ np.asarray(hotspot, dtype=np.float64), -1.0, 1.0))
         rows, cols = np.nonzero(angle < hotspot_pixels * np.pi / (height - 1))
         dirs, w = _cell_directions(height, width, rows, cols, hotspot_supersample)
-        values = _eval_environment(mi, scene, dirs.reshape(-1, 3)).reshape(len(rows), -1, 3)
+        values = eval_environment(mi, scene, dirs.reshape(-1, 3)).reshape(len(rows), -1, 3)
         out[rows, cols] = np.einsum("ps,psc->pc", w, values) / w.sum(axis=1, keepdims=True)
     return out
 

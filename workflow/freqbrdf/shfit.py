@@ -1,10 +1,10 @@
 """SH fits of the outgoing radiance B and incoming light L of every texel (rule fit_sh).
 
-Wiersma et al. 2024, section 4.3 (Fig. 3): the per-texel observations (``radiance``
+Wiersma et al. 2024, section 4.2 (Eq. 12, Fig. 3): the per-texel observations (``radiance``
 B, ``weight``, ``wo_local``, ``incoming`` L; :class:`freqbrdf.artefacts.Observations`)
 are sparse, irregular and weighted samples on the hemisphere; `fit_sh` fits
-their SH coefficients by regularised least squares (Eq. 12, regulariser
-``diag(e^l)``), and :func:`freqbrdf.sh.power_spectrum` gives the power per degree.
+their SH coefficients by regularised least squares (regulariser
+``W = diag(e^l)``), and :func:`freqbrdf.sh.power_spectrum` gives the power per degree.
 
 Parametrisation
 ---------------
@@ -19,6 +19,22 @@ rotation-equivariant and the power spectra are rotation invariant. The only
 place the normal matters is the irradiance (degree 0 analysis), where
 `clamped_cosine_sh` evaluates the clamped-cosine kernel about local +z
 explicitly.
+Notes
+-----
+*The DC penalty.* ``penalise_dc=False`` sets ``W_00 = 0`` (not in the paper):
+the constant then costs nothing, so constant data are fitted exactly by a
+constant. With the paper's ``W_00 = 1`` and fewer samples than coefficients,
+the smoothest interpolant of constant data is NOT constant (its DC is 0.67
+sqrt(4 pi) at the median texel of the 24-view sphere/studio capture), so a
+diffuse texel's constant radiance leaks into degrees >= 1, where the spectrum
+search reads it as specular reflection (median K_s of the dielectric texels
+0.75 instead of 0.125 without the DC penalty).
+
+*The dual solver.* For ``exp`` and ``constant`` the solution of
+``(Y^T S Y + lam W) c = Y^T S f`` is also ``W^-1 Z^T (Z W^-1 Z^T + lam I)^-1 g``
+with ``Z = S^1/2 Y``, ``g = S^1/2 f`` (push-through identity), a K x K system
+per texel: cheaper when there are fewer samples than coefficients (24 views
+at lmax 6: 24 vs 49).
 """
 
 from __future__ import annotations
@@ -31,12 +47,8 @@ from .sh import n_coeffs, real_sh, sh_degrees
 from .validation import check_choice, check_int, check_shape
 
 REGULARISERS = ("exp", "constant", "none")
-
-
 _FILL_DIRECTION = (0.0, 0.0, 1.0)  # any unit vector: stands in for unobserved samples
 _NONE_RIDGE = 1e-9  # relative ridge of regulariser "none" (see fit_sh)
-
-
 _FIT_CHUNK_VALUES = 1 << 22  # float64 values of one chunk's design matrix (32 MB)
 
 
@@ -159,6 +171,42 @@ def _dual_solve(y: np.ndarray, f: np.ndarray, w: np.ndarray, reg: np.ndarray, la
     return np.concatenate([c0[:, None, :], c_ac], axis=1)
 
 
+def _check_samples(d: np.ndarray, f: np.ndarray, w: np.ndarray) -> None:
+    """Shapes of directions (T, K, 3), values (T, K, C) and weights (T, K); finite values and
+    non-zero directions wherever the weight is positive."""
+    check_shape(d, "directions", (None, None, 3))
+    check_shape(f, "values", (d.shape[0], d.shape[1], None))
+    check_shape(w, "weights", (d.shape[0], d.shape[1]))
+    if not np.all(np.isfinite(w)) or (w < 0).any():
+        bad = w[~(np.isfinite(w) & (w >= 0))][0]
+        raise ValueError(f"weights must be finite and >= 0, got {bad!r}")
+    used = w > 0
+    bad_value = used & ~np.isfinite(f).all(axis=2)
+    if bad_value.any():
+        t, k = np.argwhere(bad_value)[0]
+        raise ValueError(f"values must be finite where weights > 0, got {f[t, k]!r} at texel {t}, sample {k}")
+    norms = np.linalg.norm(d, axis=2)
+    bad_dir = used & ~(np.isfinite(norms) & (norms > 0))
+    if bad_dir.any():
+        t, k = np.argwhere(bad_dir)[0]
+        raise ValueError(
+            f"directions must be finite and non-zero where weights > 0, got {d[t, k]!r} at texel {t}, sample {k}"
+        )
+
+
+def _solver_method(regulariser: str, solver: str, n_obs: int, n: int) -> str:
+    """``ridge`` (regulariser none), ``dual`` or ``primal`` (see `fit_sh`)."""
+    check_choice(solver, "solver", ("auto", "primal", "dual"))
+    dual_ok = regulariser != "none"
+    if solver == "dual" and not dual_ok:
+        raise ValueError("solver='dual' needs regulariser 'exp' or 'constant', got 'none'")
+    if regulariser == "none":
+        return "ridge"
+    if solver == "dual" or (solver == "auto" and dual_ok and n_obs < n):
+        return "dual"
+    return "primal"
+
+
 def fit_sh(
     directions: np.ndarray,
     values: np.ndarray,
@@ -181,26 +229,11 @@ def fit_sh(
     systems (fewer samples than coefficients, or a hemisphere only) return a
     near minimum-norm solution instead of blowing up.
 
-    ``penalise_dc=False`` sets ``W_00 = 0`` (not in the paper): the constant
-    then costs nothing, so constant data are fitted exactly by a constant.
-    With the paper's ``W_00 = 1`` and fewer samples than coefficients, the
-    smoothest interpolant of constant data is NOT constant (its DC is 0.67
-    sqrt(4 pi) at the median texel of the 24-view sphere/studio capture), so
-    a diffuse texel's constant radiance leaks into degrees >= 1, where the
-    spectrum search reads it as specular reflection (median K_s of the
-    dielectric texels 0.75 instead of 0.125 without the DC penalty).
+    ``penalise_dc`` and the ``dual`` solver: see the module's Notes.
 
-    For ``exp`` and ``constant`` the same solution is also
-    ``W^-1 Z^T (Z W^-1 Z^T + lam I)^-1 g`` with ``Z = S^1/2 Y``, ``g = S^1/2 f``
-    (push-through identity), a K x K system per texel: cheaper when there are
-    fewer samples than coefficients (24 views at lmax 6: 24 vs 49).
-
-    Texels with no sample of positive weight get zero coefficients. Samples
-    of zero weight are ignored entirely (their directions and values may be
-    anything, even NaN); samples of positive weight need finite values and
-    finite, non-zero directions (normalised internally). Fit B and L of the same texels in ONE call by
-    concatenating their channels: they share directions and weights, hence
-    the normal matrix, and the cost is almost that of one fit.
+    Texels with no sample of positive weight get zero coefficients; samples
+    of zero weight are ignored (even NaN). Fit B and L of the same texels in
+    one call by concatenating their channels: they share the normal matrix.
 
     Parameters
     ----------
@@ -236,63 +269,35 @@ def fit_sh(
         Shape ``(T, (lmax+1)**2, C)``, float64, l-major coefficient axis; same
         scale as :func:`freqbrdf.sh.project_equirect` of the same function.
     """
-    d = np.asarray(directions)
-    f = np.asarray(values)
-    w = np.asarray(weights)
-    check_shape(d, "directions", (None, None, 3))
-    check_shape(f, "values", (d.shape[0], d.shape[1], None))
-    check_shape(w, "weights", (d.shape[0], d.shape[1]))
+    d, f, w64 = np.asarray(directions), np.asarray(values), np.asarray(weights, dtype=np.float64)
     lmax = check_int(lmax, "lmax", 0)
     check_choice(regulariser, "regulariser", REGULARISERS)
     lam = float(lam)
     if regulariser != "none" and not (np.isfinite(lam) and lam > 0.0):
         raise ValueError(f"lam must be a finite number > 0 for regulariser {regulariser!r}, got {lam!r}")
-    w64 = w.astype(np.float64)
-    if not np.all(np.isfinite(w64)) or (w64 < 0).any():
-        bad = w64[~(np.isfinite(w64) & (w64 >= 0))][0]
-        raise ValueError(f"weights must be finite and >= 0, got {bad!r}")
-    used = w64 > 0
-    bad_value = used & ~np.isfinite(f).all(axis=2)
-    if bad_value.any():
-        t, k = np.argwhere(bad_value)[0]
-        raise ValueError(f"values must be finite where weights > 0, got {f[t, k]!r} at texel {t}, sample {k}")
-    norms = np.linalg.norm(d, axis=2)
-    bad_dir = used & ~(np.isfinite(norms) & (norms > 0))
-    if bad_dir.any():
-        t, k = np.argwhere(bad_dir)[0]
-        raise ValueError(
-            f"directions must be finite and non-zero where weights > 0, got {d[t, k]!r} at texel {t}, sample {k}"
-        )
-    n_tex, n_obs = w.shape
+    _check_samples(d, f, w64)
+    n_tex, n_obs = w64.shape
     n = n_coeffs(lmax)
     if chunk is None:
         chunk = max(1, _FIT_CHUNK_VALUES // max(1, n * (n_obs + n)))
     chunk = check_int(chunk, "chunk", 1)
-    check_choice(solver, "solver", ("auto", "primal", "dual"))
-    dual_ok = regulariser != "none"
-    if solver == "dual" and not dual_ok:
-        raise ValueError("solver='dual' needs regulariser 'exp' or 'constant', got 'none'")
-    if regulariser == "none":
-        method = "ridge"
-    elif solver == "dual" or (solver == "auto" and dual_ok and n_obs < n):
-        method = "dual"
-    else:
-        method = "primal"
+    method = _solver_method(regulariser, solver, n_obs, n)
     reg = regulariser_diagonal(lmax, regulariser, bool(penalise_dc))
-    workers = check_int(workers, "workers", 1)
-    out = np.zeros((n_tex, n, f.shape[2]))
+    return _solve_chunks(d, f, w64, lmax, reg, lam, method, chunk, check_int(workers, "workers", 1))
+
+
+def _solve_chunks(
+    d: np.ndarray, f: np.ndarray, w: np.ndarray, lmax: int, reg: np.ndarray, lam: float, method: str, chunk: int,
+    workers: int,
+) -> np.ndarray:
+    """`fit_sh`'s coefficients (T, n, C), ``chunk`` texels at a time on ``workers`` threads."""
+    n_tex = w.shape[0]
+    out = np.zeros((n_tex, n_coeffs(lmax), f.shape[2]))
 
     def solve(start: int) -> None:
         stop = min(n_tex, start + chunk)
-        out[start:stop] = _fit_chunk(
-            d[start:stop].astype(np.float64),
-            f[start:stop].astype(np.float64),
-            w64[start:stop],
-            lmax,
-            reg,
-            lam,
-            method,
-        )
+        out[start:stop] = _fit_chunk(d[start:stop].astype(np.float64), f[start:stop].astype(np.float64),
+                                     w[start:stop], lmax, reg, lam, method)
 
     starts = range(0, n_tex, chunk)
     if workers == 1 or len(starts) == 1:

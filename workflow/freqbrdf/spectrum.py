@@ -1,6 +1,6 @@
 """The spectrum-only estimate and its entropy (rule spectrum_search).
 
-Wiersma et al. 2024, sections 4.4 and 5.4 (Eqs. 13-16, Fig. 4): from the power
+Wiersma et al. 2024, sections 4.4 and 4.5 (Eqs. 14-25, Fig. 4): from the power
 spectra of B and L per texel, a grid search over (K_s, alpha) of the
 objective ``D``, the normalised entropy of the likelihood ``exp(-D / sigma)``
 over the grid (the uncertainty map), and the diffuse albedo from degree 0
@@ -159,7 +159,8 @@ def _normalise_rows(
 
 
 def _reference_rows(sb: np.ndarray, sl: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The authors' scaling of (N, lmax+1) spectra rows: per-degree power divided by (l + 1).
+    """The authors' scaling (svbrdf_uncertainty, uncertainty/entropy.py) of (N, lmax+1) spectra rows:
+    per-degree power divided by (l + 1).
 
     Returns the rows at degrees 1..lmax, the weight ``S_B'(0)^2 / lmax`` that
     turns their sum of squared residuals into the reference code's D (the mean
@@ -390,115 +391,63 @@ def spectrum_search(
     return_objective: bool = False,
     normalise: str = "light",
 ) -> SpectrumSearch:
-    """Spectrum-only estimate of (K_s, alpha) and its entropy (METHOD section 6).
+    """Spectrum-only estimate of (K_s, alpha) and its entropy (paper sections 4.4-4.5: D of Eq. 19, likelihood Eq. 23, entropy Eqs. 24-25).
 
     Parameters
     ----------
     s_b, s_l : numpy.ndarray
-        Shape ``(T, lmax+1, C)``, lmax >= 1: outgoing and incoming power
-        spectra (`spectra`) of the same texels, same parametrisation.
+        Shape ``(T, lmax+1, C)``, lmax >= 1: outgoing and incoming power spectra of the same texels.
     ks_values, alpha_values : numpy.ndarray
         Grid axes ``(n_ks,)`` and ``(n_alpha,)`` (e.g. `default_grid`).
     sigma : float
         ``normalise="light"``: noise scale of the normalised D, ``p ~ exp(-D / (2 sigma^2))``
-        (paper Eq. 23: 1e-2). ``"reference"``: the reference code's temperature,
-        ``p ~ exp(-(D - D_min) / sigma)`` (1e-5 there).
+        (paper: 1e-2); ``"reference"``: the temperature of ``p ~ exp(-(D - D_min) / sigma)``.
     combine : {"min", "luminance"}
-        How channel entropies are combined (`combine_entropy`; needs C == 3
-        for "luminance").
+        How channel entropies are combined (`combine_entropy`; "luminance" needs C == 3).
     observed : numpy.ndarray, optional
-        ``(T,)`` bool (`observed_texels`); unobserved texels get entropy 1.
-        Default: every texel is observed.
+        ``(T,)`` bool; unobserved texels get entropy 1. Default: every texel is observed.
     min_relative_power : float
         See `normalised_spectra`.
-    chunk : int
-        Texels processed at once (bounds memory: about 1 KB per texel and
-        channel on an 8 x 8 grid).
-    workers : int
-        Threads processing chunks concurrently (numpy releases the GIL).
+    chunk, workers : int
+        Texels per chunk (about 1 KB per texel and channel on an 8 x 8 grid) and threads.
     return_objective : bool
         Also return the full normalised D (``T n_ks n_alpha C`` float64 values).
     normalise : {"light", "reference"}
-        ``light`` (default): both spectra divided by the light's total power
-        (module docstring), so D is free of the light's intensity.
-        ``reference``: the authors' code (svbrdf_uncertainty,
-        ``uncertainty/entropy.py``): per-degree power divided by ``l + 1``,
-        D the mean squared residual over degrees times the outgoing DC power
-        squared, so bright texels are more certain than dark ones in absolute
-        radiance units.
+        ``light``: both spectra divided by the light's total power (module
+        docstring); ``reference``: as the authors' code (`_reference_rows`).
 
     Returns
     -------
     SpectrumSearch
     """
-    sb = np.asarray(s_b)
-    sl = np.asarray(s_l)
+    sb, sl = np.asarray(s_b), np.asarray(s_l)
     check_shape(sl, "s_l", (None, None, None))
     check_shape(sb, "s_b", sl.shape)
     n_tex, n_deg, n_ch = sl.shape
     if n_deg < 2:
         raise ValueError(f"spectra need degrees 0..lmax with lmax >= 1, got shape {sl.shape}")
-    ks, alpha = _check_grid_values(ks_values, alpha_values)
+    grid = _check_grid_values(ks_values, alpha_values)
     sigma = check_positive(sigma, "sigma")
     check_choice(combine, "combine", COMBINE_MODES)
     if combine == "luminance" and n_ch != 3:
         raise ValueError(f"combine='luminance' needs 3 channels, got {n_ch}")
-    chunk = check_int(chunk, "chunk", 1)
-    workers = check_int(workers, "workers", 1)
+    chunk, workers = check_int(chunk, "chunk", 1), check_int(workers, "workers", 1)
     min_relative_power = _check_min_relative_power(min_relative_power)
     check_choice(normalise, "normalise", NORMALISATIONS)
-    # the reference code's temperature as the sigma of exp(-D / (2 sigma^2))
-    sigma_eff = np.sqrt(sigma / 2.0) if normalise == "reference" else sigma
-    if observed is None:
-        seen = np.ones(n_tex, bool)
-    else:
-        seen = np.asarray(observed)
-        check_shape(seen, "observed", (n_tex,))
-        seen = seen.astype(bool)
-    n_ks, n_alpha = ks.size, alpha.size
-
-    ks_idx = np.zeros((n_tex, n_ch), np.int64)
-    alpha_idx = np.zeros((n_tex, n_ch), np.int64)
-    ks_at = np.zeros((n_tex, n_ch))
-    alpha_joint = np.zeros(n_tex)
-    h_rgb = np.ones((n_tex, n_ch))
-    ident = np.zeros((n_tex, n_ch), bool)
-    objective = np.empty((n_tex, n_ks, n_alpha, n_ch)) if return_objective else None
+    seen = np.ones(n_tex, bool) if observed is None else np.asarray(observed)
+    check_shape(seen, "observed", (n_tex,))
+    seen = seen.astype(bool)
+    out = {"ks_index": np.zeros((n_tex, n_ch), np.int64), "alpha_index": np.zeros((n_tex, n_ch), np.int64),
+           "ks": np.zeros((n_tex, n_ch)), "alpha": np.zeros(n_tex), "entropy_rgb": np.ones((n_tex, n_ch)),
+           "identifiable": np.zeros((n_tex, n_ch), bool)}
+    if return_objective:
+        out["objective"] = np.empty((n_tex, grid[0].size, grid[1].size, n_ch))
 
     def search(start: int) -> None:
-        stop = min(n_tex, start + chunk)
-        t = stop - start
-        # one row per (texel, channel): reductions run along contiguous rows
-        rows_b, rows_l = _to_rows(sb[start:stop].astype(np.float64)), _to_rows(sl[start:stop].astype(np.float64))
-        if normalise == "reference":
-            b, l, weight, ok = _reference_rows(rows_b, rows_l)
-        else:
-            b, l, ok = _normalise_rows(rows_b, rows_l, min_relative_power)
-        ok = ok.reshape(t, n_ch) & seen[start:stop, None]
-        d = _objective_rows(b, l, ks, alpha)
-        if normalise == "reference":
-            d *= weight[:, None]
-        d = d.reshape(t, n_ch, n_ks * n_alpha)
-        if not ok.all():
-            d[~ok] = 0.0  # flat (uniform) likelihood where nothing is identifiable
-        d4 = d.reshape(t, n_ch, n_ks, n_alpha)
-        best = d.argmin(axis=2)
-        ks_idx[start:stop], alpha_idx[start:stop] = np.divmod(best, n_alpha)
-        d_min = np.take_along_axis(d, best[..., None], axis=2)[..., 0]
-        h_rgb[start:stop] = np.where(ok, _entropy_rows(d, sigma_eff, d_min), 1.0)
-        ident[start:stop] = ok
-        # Profile likelihood over channels: one alpha per texel, K_s per channel.
-        # The min over K_s runs as a loop of elementwise minima because numpy
-        # reduces a short middle axis slowly.
-        prof = d4[:, :, 0, :].copy()
-        for k in range(1, n_ks):
-            np.minimum(prof, d4[:, :, k, :], out=prof)
-        a_best = prof.sum(axis=1).argmin(axis=1)  # (t,)
-        k_best = d4[np.arange(t), :, :, a_best].argmin(axis=2)  # (t, C)
-        alpha_joint[start:stop] = alpha[a_best]
-        ks_at[start:stop] = ks[k_best]
-        if objective is not None:
-            objective[start:stop] = d4.transpose(0, 2, 3, 1)
+        rows = slice(start, min(n_tex, start + chunk))
+        found = _search_chunk(sb[rows], sl[rows], seen[rows], grid, sigma, normalise, min_relative_power)
+        for name, array in out.items():
+            array[rows] = found[name]
 
     starts = range(0, n_tex, chunk)
     if workers == 1 or len(starts) <= 1:
@@ -508,22 +457,50 @@ def spectrum_search(
         # chunks write disjoint slices of the outputs, so threads need no locking
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(search, starts))
-    if combine == "luminance":
-        h_tex = combine_entropy(h_rgb, "luminance")
+    h_rgb = out["entropy_rgb"]
+    h_tex = combine_entropy(h_rgb, "luminance") if combine == "luminance" else h_rgb.min(axis=1)
+    return SpectrumSearch(entropy=np.where(seen, h_tex, 1.0), unobserved=~seen, objective=out.pop("objective", None),
+                          **out)
+
+
+def _search_chunk(
+    sb: np.ndarray, sl: np.ndarray, seen: np.ndarray, grid: tuple[np.ndarray, np.ndarray], sigma: float,
+    normalise: str, min_relative_power: float,
+) -> dict[str, np.ndarray]:
+    """`spectrum_search` of t texels: its per-texel arrays, keyed like `SpectrumSearch`'s fields."""
+    ks, alpha = grid
+    t, _, n_ch = sl.shape
+    n_ks, n_alpha = ks.size, alpha.size
+    # one row per (texel, channel): reductions run along contiguous rows
+    rows_b, rows_l = _to_rows(sb.astype(np.float64)), _to_rows(sl.astype(np.float64))
+    if normalise == "reference":
+        b, l, weight, ok = _reference_rows(rows_b, rows_l)
     else:
-        h_tex = h_rgb.min(axis=1)
-    h_tex = np.where(seen, h_tex, 1.0)
-    return SpectrumSearch(
-        ks_index=ks_idx,
-        alpha_index=alpha_idx,
-        ks=ks_at,
-        alpha=alpha_joint,
-        entropy_rgb=h_rgb,
-        entropy=h_tex,
-        identifiable=ident,
-        unobserved=~seen,
-        objective=objective,
-    )
+        b, l, ok = _normalise_rows(rows_b, rows_l, min_relative_power)
+    ok = ok.reshape(t, n_ch) & seen[:, None]
+    d = _objective_rows(b, l, ks, alpha)
+    if normalise == "reference":
+        d *= weight[:, None]
+    d = d.reshape(t, n_ch, n_ks * n_alpha)
+    if not ok.all():
+        d[~ok] = 0.0  # flat (uniform) likelihood where nothing is identifiable
+    d4 = d.reshape(t, n_ch, n_ks, n_alpha)
+    best = d.argmin(axis=2)
+    ks_index, alpha_index = np.divmod(best, n_alpha)
+    d_min = np.take_along_axis(d, best[..., None], axis=2)[..., 0]
+    # the reference code's temperature as the sigma of exp(-D / (2 sigma^2))
+    sigma_eff = np.sqrt(sigma / 2.0) if normalise == "reference" else sigma
+    # Profile likelihood over channels: one alpha per texel, K_s per channel.
+    # The min over K_s runs as a loop of elementwise minima because numpy
+    # reduces a short middle axis slowly.
+    prof = d4[:, :, 0, :].copy()
+    for k in range(1, n_ks):
+        np.minimum(prof, d4[:, :, k, :], out=prof)
+    a_best = prof.sum(axis=1).argmin(axis=1)  # (t,)
+    k_best = d4[np.arange(t), :, :, a_best].argmin(axis=2)  # (t, C)
+    return {"ks_index": ks_index, "alpha_index": alpha_index, "ks": ks[k_best], "alpha": alpha[a_best],
+            "entropy_rgb": np.where(ok, _entropy_rows(d, sigma_eff, d_min), 1.0), "identifiable": ok,
+            "objective": d4.transpose(0, 2, 3, 1)}
 
 
 def diffuse_albedo(
@@ -534,7 +511,7 @@ def diffuse_albedo(
     A Lambertian texel reflects the constant radiance ``K_d E / pi``; the
     specular lobe adds ``K_s L_00`` at degree 0 (its filter is 1 there). So
     ``B_00 = u K_d E / pi + K_s L_00``, where ``u`` is the degree-0 coefficient
-    of the constant 1: ``sqrt(4 pi)`` for an exact transform, which is METHOD's
+    of the constant 1: ``sqrt(4 pi)`` for an exact transform, which is the paper's Eq. 14
     ``B_00 = pi^(-1/2) K_d E' + K_s L_00`` with the paper's hemispherical
     normalisation ``E' = 2 E``. But samples of reflected light cover one
     hemisphere at most, and a fit does not extend constant data on it to a
