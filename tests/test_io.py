@@ -88,3 +88,19 @@ def test_atomic_directory_replaces_only_on_success(tmp_path):
             raise RuntimeError("interrupted")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["capture"]  # no partial directory left
     assert [p.name for p in target.iterdir()] == ["a.txt"]  # the old complete output is untouched
+
+
+def test_atomic_path_creates_files_with_the_umask_mode(tmp_path):
+    """mkstemp's owner-only mode would make every output unreadable to a cluster's other users."""
+    import os
+
+    from freqbrdf.io import atomic_path
+
+    old = os.umask(0o022)
+    try:
+        with atomic_path(tmp_path / "out.txt") as tmp:
+            tmp.write_text("x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "out.txt").stat().st_mode & 0o777 == 0o644
+    assert [p.name for p in tmp_path.iterdir()] == ["out.txt"]

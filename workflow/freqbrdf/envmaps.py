@@ -23,7 +23,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .colour import LUMINANCE
-from .sh import equirect_directions, equirect_solid_angles, power_spectrum, project_equirect
+from .sh import angles_to_directions, equirect_directions, equirect_solid_angles, power_spectrum, project_equirect
 
 ENV_KINDS = ("studio", "museum", "sunny", "overcast")
 
@@ -42,9 +42,7 @@ def direction_from_angles(elevation_deg: float | np.ndarray, azimuth_deg: float 
     -------
     ndarray, shape (..., 3)
     """
-    el = np.radians(elevation_deg)
-    az = np.radians(azimuth_deg)
-    return np.stack([np.cos(el) * np.sin(az), np.sin(el), -np.cos(el) * np.cos(az)], axis=-1)
+    return angles_to_directions(np.radians(90.0 - np.asarray(elevation_deg, dtype=np.float64)), np.radians(azimuth_deg))
 
 
 def soft_disc(dirs: np.ndarray, centre: np.ndarray, radius_deg: float, edge: float = 0.3) -> np.ndarray:

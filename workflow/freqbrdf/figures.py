@@ -106,16 +106,7 @@ def capture_maps_figure(
     shown_entropy = shown_error = None
     for r, (label, svbrdf) in enumerate(rows):
         ax_base, ax_rough, ax_metal, ax_extra = axes[r]
-        if svbrdf is None:
-            for ax in (ax_base, ax_rough, ax_metal):
-                ax.text(0.5, 0.5, "no ground truth\n(real capture)", ha="center", va="center", fontsize=8)
-        else:
-            base = to_srgb(svbrdf["base_color"])
-            base[~inside] = float(GREY)
-            ax_base.imshow(base, interpolation="nearest")
-            for ax, name in ((ax_rough, "roughness"), (ax_metal, "metallic")):
-                ax.imshow(np.where(inside, svbrdf[name], np.nan), cmap=grey_map, vmin=0.0, vmax=1.0,
-                          interpolation="nearest")
+        _draw_svbrdf(axes[r][:3], svbrdf, inside, grey_map)
         if r == 0:
             shown_entropy = ax_extra.imshow(np.where(inside, entropy, np.nan), cmap=turbo, vmin=0.0, vmax=1.0,
                                             interpolation="nearest")
@@ -141,6 +132,19 @@ def capture_maps_figure(
     fig.suptitle(title, fontsize=10)
     save_figure(fig, path, dpi=100)
     return mse
+
+
+def _draw_svbrdf(axes, svbrdf: Mapping[str, np.ndarray] | None, inside: np.ndarray, grey_map) -> None:
+    """Base colour (sRGB), roughness and metallic of one SVBRDF on three axes, grey outside the atlas."""
+    if svbrdf is None:
+        for ax in axes:
+            ax.text(0.5, 0.5, "no ground truth\n(real capture)", ha="center", va="center", fontsize=8)
+        return
+    base = to_srgb(svbrdf["base_color"])
+    base[~inside] = float(GREY)
+    axes[0].imshow(base, interpolation="nearest")
+    for ax, name in zip(axes[1:], ("roughness", "metallic")):
+        ax.imshow(np.where(inside, svbrdf[name], np.nan), cmap=grey_map, vmin=0.0, vmax=1.0, interpolation="nearest")
 
 
 def relight_figure(

@@ -10,7 +10,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import tempfile
+import secrets
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -24,16 +24,20 @@ _CHANNELS_BY_DEPTH = {1: "Y", 3: "RGB", 4: "RGBA"}
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; move it into place on success.
 
-    The parent directory is created. On an exception the temporary file is
+    The parent directory is created. The file is created with the process's
+    umask (like any other output, unlike ``mkstemp``'s owner-only mode) and
+    flushed to disk before the rename, so a crash just after cannot leave an
+    empty file behind a complete name. On an exception the temporary file is
     removed and ``path`` is left untouched.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix or ".tmp", dir=path.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
+    tmp_path = path.with_name(f".{path.stem}.{secrets.token_hex(6)}{path.suffix or '.tmp'}")
+    os.close(os.open(tmp_path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     try:
         yield tmp_path
+        with open(tmp_path, "rb") as written:
+            os.fsync(written.fileno())
         os.replace(tmp_path, path)
     finally:
         tmp_path.unlink(missing_ok=True)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .observations import sample_equirect
-from .sh import equirect_directions, equirect_solid_angles, project_equirect, real_sh, sh_degrees
+from .sh import angles_to_directions, equirect_directions, equirect_solid_angles, project_equirect, real_sh, sh_degrees
 
 __all__ = [
     "LightQuadrature",
@@ -110,10 +110,7 @@ def light_quadrature(envmap: np.ndarray, lmax: int, prefilter: float = 0.0, ligh
     n = (light_lmax + int(lmax)) // 2 + 8
     t, w_t = np.polynomial.legendre.leggauss(n)
     phi = 2.0 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n)
-    s = np.sqrt(1.0 - t * t)
-    directions = np.stack(
-        [np.outer(s, np.sin(phi)), np.outer(t, np.ones_like(phi)), -np.outer(s, np.cos(phi))], axis=-1
-    ).reshape(-1, 3)
+    directions = angles_to_directions(np.arccos(t)[:, None], phi[None, :]).reshape(-1, 3)
     weights = np.repeat(w_t * (2.0 * np.pi / (2 * n)), 2 * n)
     radiance = real_sh(directions, light_lmax) @ coeffs
     return LightQuadrature(

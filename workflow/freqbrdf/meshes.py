@@ -81,12 +81,13 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
+
+from .io import atomic_path
 
 OBJECTS: tuple[str, ...] = ("sphere", "torus", "die", "vase", "knot")
 
@@ -250,24 +251,10 @@ def write_ply(path: str | os.PathLike[str], mesh: Mesh) -> None:
     face_data = np.empty(len(mesh.faces), dtype=_PLY_FACE_DTYPE)
     face_data["count"] = 3
     face_data["index"] = mesh.faces
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(_ply_header(len(mesh.vertices), len(mesh.faces)))
-            handle.write(vertex_data.tobytes())
-            handle.write(face_data.tobytes())
-            handle.flush()
-            # Without fsync a crash shortly after the rename can leave an empty file.
-            os.fsync(handle.fileno())
-        # mkstemp creates files private to the owner; the result is an ordinary data file.
-        os.chmod(tmp_name, 0o644)
-        os.replace(tmp_name, path)
-    except BaseException:
-        try:
-            os.unlink(tmp_name)
-        except FileNotFoundError:
-            pass
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as handle:
+        handle.write(_ply_header(len(mesh.vertices), len(mesh.faces)))
+        handle.write(vertex_data.tobytes())
+        handle.write(face_data.tobytes())
 
 
 def read_ply(path: str | os.PathLike[str]) -> Mesh:

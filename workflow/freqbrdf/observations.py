@@ -356,29 +356,22 @@ def observe(
 
     Parameters
     ----------
-    texels : SurfaceTexels
-        T texels.
-    cameras : Cameras
-        K views.
-    images : ndarray, shape (K, H, W, 3)
-        Linear HDR views (NaN/Inf allowed: such pixels are never observed).
-    coverage : ndarray, shape (K, H, W)
-        Object mask in [0, 1].
+    texels, cameras : SurfaceTexels, Cameras
+        T texels, K views.
+    images, coverage : ndarray, shape (K, H, W, 3) and (K, H, W)
+        Linear HDR views (NaN/Inf pixels are never observed) and object masks in [0, 1].
     incoming_map : ndarray, shape (He, We, 3)
         Band-limited environment map sampled along mirror directions.
     occluded : callable
         ``occluded(origins (P, 3), directions (P, 3), distances (P,)) -> (P,) bool``,
-        e.g. :func:`freqbrdf.render.occlusion_test` bound to the mesh.
+        e.g. :func:`freqbrdf.raycast.occlusion_test` bound to the mesh.
     distances : ndarray, shape (K, H, W), optional
         Distance from each camera to the surface seen at each pixel centre
-        (:func:`freqbrdf.render.distance_maps`), NaN at pixels near an edge
-        (:func:`edge_free_distances`). When given, a pair is kept only if all
-        four pixels it reads see the texel's own surface away from edges, so
-        samples that straddle an occlusion edge inside the object (where the
-        mask is 1 on both sides) are dropped.
+        (:func:`freqbrdf.raycast.distance_maps`), NaN near an edge (`edge_free_distances`).
+        When given, a pair is kept only if all four pixels it reads see the texel's own
+        surface, which drops samples straddling an occlusion edge inside the object.
     min_coverage : float
-        Smallest bilinear mask value accepted (excludes silhouette pixels that
-        mix object and background).
+        Smallest bilinear mask value accepted (no silhouette pixels mixing in background).
     ray_offset : float
         Offset of visibility rays along the normal, in object units, so a
         texel does not occlude itself.

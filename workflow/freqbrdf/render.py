@@ -15,7 +15,7 @@ from types import ModuleType
 import numpy as np
 
 from .cameras import Cameras, mitsuba_to_world
-from .sh import equirect_directions
+from .sh import angles_to_directions, equirect_directions
 
 
 def bitmap_texture(mi: ModuleType, array: np.ndarray) -> dict:
@@ -239,9 +239,8 @@ def _cell_directions(height: int, width: int, rows: np.ndarray, cols: np.ndarray
     offs = (np.arange(s) + 0.5) / s - 0.5
     theta = np.clip(np.pi * rows[:, None, None] / (height - 1) + dtheta * offs[None, :, None], 0.0, np.pi)
     phi = 2.0 * np.pi * (cols[:, None, None] + 0.5) / width + dphi * offs[None, None, :]
-    theta, phi = np.broadcast_arrays(theta, phi)
-    st = np.sin(theta)
-    dirs = np.stack([st * np.sin(phi), np.cos(theta), -st * np.cos(phi)], axis=-1)
+    dirs = angles_to_directions(theta, phi)
+    st = np.broadcast_to(np.sin(theta), dirs.shape[:-1])
     return dirs.reshape(len(rows), s * s, 3), np.maximum(st, 1e-12).reshape(len(rows), s * s)
 
 

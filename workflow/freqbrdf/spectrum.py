@@ -377,6 +377,16 @@ class SpectrumSearch:
     objective: np.ndarray | None = None
 
 
+def _check_spectra(s_b: np.ndarray, s_l: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Outgoing and incoming spectra of the same shape (T, lmax+1, C) with lmax >= 1."""
+    sb, sl = np.asarray(s_b), np.asarray(s_l)
+    check_shape(sl, "s_l", (None, None, None))
+    check_shape(sb, "s_b", sl.shape)
+    if sl.shape[1] < 2:
+        raise ValueError(f"spectra need degrees 0..lmax with lmax >= 1, got shape {sl.shape}")
+    return sb, sl
+
+
 def spectrum_search(
     s_b: np.ndarray,
     s_l: np.ndarray,
@@ -420,12 +430,8 @@ def spectrum_search(
     -------
     SpectrumSearch
     """
-    sb, sl = np.asarray(s_b), np.asarray(s_l)
-    check_shape(sl, "s_l", (None, None, None))
-    check_shape(sb, "s_b", sl.shape)
-    n_tex, n_deg, n_ch = sl.shape
-    if n_deg < 2:
-        raise ValueError(f"spectra need degrees 0..lmax with lmax >= 1, got shape {sl.shape}")
+    sb, sl = _check_spectra(s_b, s_l)
+    n_tex, _, n_ch = sl.shape
     grid = _check_grid_values(ks_values, alpha_values)
     sigma = check_positive(sigma, "sigma")
     check_choice(combine, "combine", COMBINE_MODES)
