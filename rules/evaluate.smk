@@ -34,6 +34,7 @@ rule metrics:
         relit=[f"results/relight/{o}/{e}/{p}/{m}/{r}" for o, e, p, m, r in RELIGHTS],
         references=[f"results/captures/{o}/{r}/test" for o, r in METRIC_REFERENCES],
         benchmarks=[f for o, e, p, m in METRIC_TIMINGS for f in method_benchmarks(o, e, p, m)],
+        extraction=[f"results/benchmarks/extract_observations/{o}_{e}_{POSES}.tsv" for o, e in SYNTHETIC_CAPTURES],
         code=library("metrics"),
     output:
         "results/tables/metrics.csv",
@@ -46,6 +47,7 @@ rule metrics:
         relights=RELIGHTS,
         references=METRIC_REFERENCES,
         timings=[(o, e, p, m, len(method_benchmarks(o, e, p, m))) for o, e, p, m in METRIC_TIMINGS],
+        methods=METHODS,
     threads: 1
     log:
         "results/logs/metrics.log",

@@ -11,6 +11,16 @@ def mitsuba_start(wildcards):
     return {}
 
 
+def mitsuba_evaluation(wildcards):
+    """Ground truth and observed texels of a synthetic capture, against which the run logs
+    its parameter MSE after every epoch (evaluation only: issue 14's equal-accuracy ratio)."""
+    if wildcards.object in REAL_CAPTURES:
+        return {}
+    w = wildcards
+    return {"truth": [object_files(w.object)[n] for n in TEXTURES],
+            "observations": f"results/observations/{w.object}/{w.env}/{w.poses}"}
+
+
 def mitsuba_settings(wildcards):
     """Optimiser settings of one run: config `mitsuba`, with `mitsuba.finetune`
     overriding epochs and spp when fine-tuning; a seed per capture and method."""
@@ -28,6 +38,7 @@ rule mitsuba_svbrdf:
     BSDF, one training view per step (mitsuba: from 0.5; freq+mitsuba: from freq)."""
     input:
         unpack(mitsuba_start),
+        unpack(mitsuba_evaluation),
         capture=lambda wildcards: capture_dir(wildcards, "train"),
         poses=pose_dir,
         mesh=mesh_file,

@@ -12,7 +12,14 @@ def report_outputs():
     outputs += ["results/tables/tables.md", "results/tables/tables.html", "results/tables/claims.html"]
     outputs += [f"results/figures/{o}/{e}/{POSES}/maps.png" for o, e in CAPTURES]
     outputs += [f"results/figures/{o}/{e}/{POSES}/relight.png" for o, e in SYNTHETIC_CAPTURES]
+    if CONVERGENCE_CURVES:
+        outputs += [f"results/figures/{o}/{e}/{POSES}/convergence.png" for o, e in SYNTHETIC_CAPTURES]
     return outputs
+
+
+# Methods with a logged MSE curve (differentiable rendering) and those shown as points.
+CONVERGENCE_CURVES = [m for m in METHODS if METHOD_REGISTRY[m].rule == "mitsuba_svbrdf"]
+CONVERGENCE_POINTS = [m for m in METHODS if METHOD_REGISTRY[m].rule != "mitsuba_svbrdf"]
 
 
 def capture_relights(wildcards):
@@ -97,6 +104,30 @@ rule relight_figure:
         references=relight_figure_envs,
     log:
         "results/logs/relight_figure/{object}_{env}_{poses}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/report_figures.py"
+
+
+rule convergence_figure:
+    """Parameter MSE against time from the capture: Mitsuba's runs epoch by epoch beside
+    the frequency-domain methods (issue 14's equal-accuracy comparison)."""
+    input:
+        curves=lambda w: [f"results/estimates/{w.object}/{w.env}/{w.poses}/{m}" for m in CONVERGENCE_CURVES],
+        extraction="results/benchmarks/extract_observations/{object}_{env}_{poses}.tsv",
+        metrics="results/tables/metrics.csv",
+        code=library("report_figures"),
+    output:
+        report("results/figures/{object}/{env}/{poses}/convergence.png", category="Captures",
+               subcategory="{object} / {env}", caption="../report/capture_convergence.rst",
+               labels={"capture": "{object} / {env}", "figure": "MSE against time"}),
+    params:
+        curves=CONVERGENCE_CURVES,
+        starts=[METHOD_REGISTRY[m].start for m in CONVERGENCE_CURVES],
+        points=CONVERGENCE_POINTS,
+    log:
+        "results/logs/convergence_figure/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
     script:

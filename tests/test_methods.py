@@ -51,3 +51,19 @@ def test_registry_rejects_inconsistent_entries():
         methods.Method("x", "X", "optimise_svbrdf", paper_rows={"table9": "X"})
     with pytest.raises(ValueError, match="not registered"):
         methods.build_registry(methods.Method("x", "X", "mitsuba_svbrdf", start="y"))
+
+
+def test_every_estimating_rule_exists_and_constrains_its_methods():
+    """Each rule of ESTIMATOR_RULES is a rule of the workflow whose {method} is constrained by the registry
+    (spectrum_search writes the literal 'spectrum' path instead)."""
+    from pathlib import Path
+
+    text = "\n".join(p.read_text() for p in sorted((Path(__file__).parents[1] / "rules").glob("*.smk")))
+    for rule in methods.ESTIMATOR_RULES:
+        block = text.split(f"rule {rule}:", 1)
+        assert len(block) == 2, f"rule {rule} is not defined in rules/"
+        body = block[1].split("\nrule ", 1)[0]
+        if rule == "spectrum_search":
+            assert methods.methods_of(rule) == ("spectrum",) and "estimates/{object}/{env}/{poses}/spectrum" in body
+        else:
+            assert f'method=wildcard_pattern(methods_of("{rule}"))' in body, rule

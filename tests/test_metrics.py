@@ -167,3 +167,17 @@ def test_relight_scores_average_the_views():
     assert scores["mse"] == pytest.approx((0.01**2 + 0.03**2) / 2, rel=0.05)
     with pytest.raises(ValueError, match="2 predictions, 1 references, 1 masks"):
         relight_scores(preds, [ref], [mask])
+
+
+def test_time_to_reach_interpolates_and_says_never():
+    from freqbrdf.metrics import time_to_reach
+
+    t, mse = np.array([0.0, 10.0, 20.0, 30.0]), np.array([0.20, 0.10, 0.06, 0.05])
+    assert time_to_reach(t, mse, 0.08) == pytest.approx(15.0)  # halfway from 0.10 to 0.06
+    assert time_to_reach(t, mse, 0.10) == pytest.approx(10.0)
+    assert time_to_reach(t, mse, 0.30) == 0.0  # the start is already there
+    assert np.isnan(time_to_reach(t, mse, 0.01))  # never within the budget
+    # a curve that dips below and rises again is timed at its first crossing
+    assert time_to_reach(t, np.array([0.2, 0.05, 0.2, 0.2]), 0.1) == pytest.approx(10 * (0.1 / 0.15))
+    with pytest.raises(ValueError, match="must not decrease"):
+        time_to_reach(t[::-1], mse, 0.1)

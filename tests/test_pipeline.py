@@ -88,7 +88,7 @@ def test_changing_one_env_reruns_only_what_depends_on_it(repo, run, tmp_path):
     jobs = planned_jobs(plan.stdout)
     # every method's relighting under overcast, then the metrics and what reads them
     assert jobs == {"build_env": 1, "env_spectrum": 1, "env_spectra": 1, "render_capture": 1,
-                    "relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1, "all": 1}
+                    "relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "all": 1}
     assert "results/captures/sphere/overcast/test" in plan.stdout
 
 
@@ -225,6 +225,16 @@ def test_metrics_csv_has_every_row(repo, run):
     assert wide.loc[("sphere", "spectrum"), "time_total_s"] == pytest.approx(spectrum, rel=1e-4)
     ratios = table[table.metric == "speed_ratio_vs_mitsuba"]
     assert len(ratios) == (2 * len(methods) if "mitsuba" in methods else 0)
+    if "mitsuba" in methods:
+        # Mitsuba's MSE curve, epoch 0 (the 0.5 start) to the end, its last row the estimate's own MSE
+        curve = pd.read_csv(run / "results/estimates/sphere/studio/gt/mitsuba/mse_curve.tsv", sep="\t")
+        assert list(curve.epoch) == list(range(len(curve))) and curve.elapsed_s.is_monotonic_increasing
+        final = table[(table.object == "sphere") & (table.method == "mitsuba") & (table.metric == "mse_average")]
+        assert curve.mse_average.iloc[-1] == pytest.approx(final.value.iloc[0], rel=1e-4)
+        # the equal-accuracy ratio of every method that needs the observations (synthetic capture only)
+        frequency = sorted(m for m in methods if m not in ("mitsuba", "freq+mitsuba"))
+        equal = table[table.metric == "speed_ratio_equal_accuracy"]
+        assert sorted(equal.method) == frequency and set(equal.object) == {"sphere"} and (equal.value >= 0).all()
 
 
 def test_relit_images_cover_every_test_view(run):
@@ -257,7 +267,7 @@ def test_changing_relight_envs_renders_only_the_new_environments(repo, run, tmp_
     changed.write_text("evaluate:\n  relight_envs: [museum, studio]\n")
     plan = snakemake(repo, run, "-n", extra_config=[changed])
     jobs = planned_jobs(plan.stdout)
-    assert jobs == {"relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1, "all": 1}
+    assert jobs == {"relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "all": 1}
     assert "results/relight/sphere/studio/gt/freq/studio" in plan.stdout
 
 
@@ -296,7 +306,7 @@ def test_changing_a_metric_setting_reruns_only_metrics_and_report_rules(repo, ru
     changed = tmp_path / "metric.yaml"
     changed.write_text("evaluate:\n  hdr_clip: 2.0\n")
     jobs = planned_jobs(snakemake(repo, run, "-n", extra_config=[changed]).stdout)
-    assert jobs == {"metrics": 1, "tables": 1, "relight_figure": 1, "all": 1}
+    assert jobs == {"metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "all": 1}
 
 
 def _colour_count(image, rgb) -> int:

@@ -201,3 +201,39 @@ def relight_figure(
         ax.set_title(name, fontsize=9)
     fig.suptitle(title, fontsize=10)
     save_figure(fig, path, dpi=100)
+
+
+def convergence_figure(
+    path: str | os.PathLike,
+    curves: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    points: Mapping[str, tuple[float, float]],
+    title: str,
+) -> None:
+    """Parameter MSE against time: the differentiable-rendering runs as curves, the
+    frequency-domain methods as points at their time from the capture.
+
+    Parameters
+    ----------
+    path : path-like
+        PNG destination.
+    curves : mapping of method to (elapsed_s (N,), mse (N,))
+        Convergence of each run, times from the capture (a fine-tuning run starts where
+        the method it fine-tunes ends).
+    points : mapping of method to (seconds, mse)
+        One-shot methods.
+    title : str
+        Figure title.
+    """
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.0, 3.6), layout="constrained")
+    for method, (t, mse) in curves.items():
+        ax.plot(np.maximum(t, 1e-2), mse, marker="o", markersize=3, label=method)
+    for method, (t, mse) in points.items():
+        ax.scatter([max(t, 1e-2)], [mse], marker="*", s=90, zorder=3, label=method)
+        ax.axhline(mse, color="grey", linewidth=0.5, linestyle=":")
+    ax.set_xscale("log")
+    ax.set_xlabel("seconds from the capture (2 CPU cores; Mitsuba: optimisation only)")
+    ax.set_ylabel("parameter MSE (observed texels)")
+    ax.legend(fontsize=7, ncol=2)
+    ax.set_title(title, fontsize=9)
+    save_figure(fig, path, dpi=100)

@@ -31,12 +31,18 @@ textures are clamped to [0, 1].
 Mitsuba is passed in as the first argument (``mi``) with a variant already
 set (:func:`freqbrdf.mitsuba_setup.setup_mitsuba`, e.g. ``llvm_ad_rgb``);
 importing this module has no side effect.
+
+With the same inputs and seed two runs render the same samples: on one
+thread the results are bit-identical; on several, texel gradients are summed
+by atomics in varying order, and Adam magnifies that rounding on texels whose
+gradient is almost 0 (measured: up to 2e-3 after two steps).
 """
 
 from __future__ import annotations
 
+import contextlib
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -140,12 +146,17 @@ class InverseResult:
         Index of the view rendered at each step.
     epoch_loss : ndarray, shape (epochs,)
         Mean loss of each epoch.
+    evaluations : list of dict
+        With an ``evaluate`` callback: one row per epoch, epoch 0 the start,
+        ``{"epoch", "elapsed_s", **evaluate(textures)}``; ``elapsed_s`` is
+        optimisation time only (the evaluations' own time is left out).
     """
 
     textures: dict[str, np.ndarray]
     loss: np.ndarray
     view: np.ndarray
     epoch_loss: np.ndarray
+    evaluations: list[dict[str, float]]
 
 
 def constant_textures(resolution: int, value: float = 0.5) -> dict[str, np.ndarray]:
@@ -413,6 +424,7 @@ def optimise_textures(
     start: Mapping[str, np.ndarray],
     settings: InverseSettings,
     progress: Callable[[EpochReport], None] | None = None,
+    evaluate: Callable[[dict[str, np.ndarray]], Mapping[str, float]] | None = None,
 ) -> InverseResult:
     """Optimise the SVBRDF textures so that ``prb`` renders match the captured views.
 
@@ -426,25 +438,24 @@ def optimise_textures(
         Equirectangular environment radiance that lit the capture.
     cameras : Cameras
         Poses and intrinsics of the K training views (OpenCV convention).
-    images : ndarray, shape (K, H, W, 3)
-        Captured linear radiance; NaN/Inf pixels are ignored.
-    weights : ndarray, shape (K, H, W)
-        Per-pixel loss weights, e.g. the object coverage masks in [0, 1].
+    images, weights : ndarray, shape (K, H, W, 3) and (K, H, W)
+        Captured linear radiance (NaN/Inf pixels are ignored) and per-pixel
+        loss weights, e.g. the object coverage masks in [0, 1].
     start : mapping
-        Start textures (:func:`check_textures`; e.g. :func:`constant_textures`
-        or a FreqBRDF estimate).
+        Start textures (:func:`check_textures`), e.g. :func:`constant_textures`.
     settings : InverseSettings
     progress : callable, optional
         Called with an :class:`EpochReport` after every epoch.
+    evaluate : callable, optional
+        Called with the current textures before the first step and after every
+        epoch (e.g. the error against a ground truth); it only reads them, and
+        its time is left out of ``elapsed_s``.
 
     Returns
     -------
     InverseResult
-        Textures clamped to [0, 1] and the loss of every step. With the same
-        inputs and seed two runs render the same samples: on one thread the
-        results are bit-identical; on several, texel gradients are summed by
-        atomics in varying order, and Adam magnifies that rounding on texels
-        whose gradient is almost 0 (measured: up to 2e-3 after two steps).
+        Textures clamped to [0, 1] and the loss of every step (reproducibility:
+        see the module docstring).
     """
     import drjit as dr
 
@@ -461,8 +472,11 @@ def optimise_textures(
         opt[key] = params[key]
     params.update(opt)
 
-    losses, order, epoch_loss = [], [], []
-    started = time.perf_counter()
+    losses, order, epoch_loss, evaluations = [], [], [], []
+    clock = _Clock()
+    if evaluate is not None:
+        with clock.paused():
+            evaluations.append({"epoch": 0, "elapsed_s": 0.0, **evaluate(_textures(opt))})
     for epoch in range(settings.epochs):
         for k in view_order(settings.seed, epoch, len(cameras)):
             for key, value in sensors[k].items():
@@ -470,14 +484,41 @@ def optimise_textures(
             losses.append(_adam_step(mi, scene, params, opt, images[k], weights[k], settings, len(losses)))
             order.append(int(k))
         epoch_loss.append(float(np.mean(losses[-len(cameras):])))
-        if progress is not None:
-            elapsed = time.perf_counter() - started
-            progress(EpochReport(epoch + 1, settings.epochs, epoch_loss[-1], elapsed, _resident_mb()))
+        elapsed = clock.elapsed()
+        with clock.paused():
+            if evaluate is not None:
+                evaluations.append({"epoch": epoch + 1, "elapsed_s": elapsed, **evaluate(_textures(opt))})
+            if progress is not None:
+                progress(EpochReport(epoch + 1, settings.epochs, epoch_loss[-1], elapsed, _resident_mb()))
 
     params.update(opt)
+    return InverseResult(textures=_textures(params), loss=np.asarray(losses), view=np.asarray(order, dtype=np.int64),
+                         epoch_loss=np.asarray(epoch_loss), evaluations=evaluations)
+
+
+def _textures(params) -> dict[str, np.ndarray]:
+    """Textures as float32 arrays from the scene's parameters or the optimiser (which holds the
+    latest step's values; the scene gets them at the next step), clamped to [0, 1] after every step."""
     textures = {}
     for name, key in _PARAM_KEYS.items():
-        value = np.array(params[key], dtype=np.float32)  # clamped to [0, 1] after every step
+        value = np.array(params[key], dtype=np.float32)
         textures[name] = value if _CHANNELS[name] == 3 else value[..., 0]
-    return InverseResult(textures=textures, loss=np.asarray(losses), view=np.asarray(order, dtype=np.int64),
-                         epoch_loss=np.asarray(epoch_loss))
+    return textures
+
+
+class _Clock:
+    """Wall-clock seconds of optimisation, leaving out the intervals spent in `paused`."""
+
+    def __init__(self) -> None:
+        self._start, self._paused = time.perf_counter(), 0.0
+
+    def elapsed(self) -> float:
+        return time.perf_counter() - self._start - self._paused
+
+    @contextlib.contextmanager
+    def paused(self) -> Iterator[None]:
+        begin = time.perf_counter()
+        try:
+            yield
+        finally:
+            self._paused += time.perf_counter() - begin

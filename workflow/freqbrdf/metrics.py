@@ -307,3 +307,36 @@ def relight_scores(
         for p, r, m in zip(preds, refs, masks)
     ]
     return {name: float(np.mean(values)) for name, values in zip(RELIGHT_METRICS, zip(*per_view))}
+
+
+def time_to_reach(elapsed_s: np.ndarray, mse: np.ndarray, target: float) -> float:
+    """First time at which a convergence curve reaches ``mse <= target``, linearly
+    interpolated between its samples; NaN if it never does.
+
+    Parameters
+    ----------
+    elapsed_s : ndarray, shape (N,)
+        Increasing optimisation times (s) of the samples, the first usually 0 (the start).
+    mse : ndarray, shape (N,)
+        Parameter MSE at those times.
+    target : float
+        The MSE to reach (e.g. another method's).
+
+    Returns
+    -------
+    float
+        Seconds; 0 if the first sample already reaches it.
+    """
+    t, e = np.asarray(elapsed_s, dtype=np.float64), np.asarray(mse, dtype=np.float64)
+    if t.ndim != 1 or t.shape != e.shape or t.size == 0:
+        raise ValueError(f"time_to_reach: elapsed_s {t.shape} and mse {e.shape} must be the same non-empty 1-D shape")
+    if np.any(np.diff(t) < 0):
+        raise ValueError("time_to_reach: elapsed_s must not decrease")
+    hit = np.nonzero(e <= target)[0]
+    if hit.size == 0:
+        return float("nan")
+    i = int(hit[0])
+    if i == 0:
+        return float(t[0])
+    # between sample i - 1 (above the target) and i (at or below it)
+    return float(t[i - 1] + (t[i] - t[i - 1]) * (e[i - 1] - target) / (e[i - 1] - e[i]))

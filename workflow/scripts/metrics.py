@@ -7,6 +7,7 @@ input list holds, in the same order (see rules/evaluate.smk).
 import warnings
 from functools import cache
 from itertools import accumulate
+from pathlib import Path
 
 import pandas as pd
 from scipy.stats import ConstantInputWarning, pearsonr
@@ -16,7 +17,8 @@ from freqbrdf.brdf import TEXTURES
 from freqbrdf.cameras import cameras_from_json
 from freqbrdf.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.logs import run_script
-from freqbrdf.metrics import parameter_error_map, parameter_mse, relight_scores
+from freqbrdf.methods import METHODS
+from freqbrdf.metrics import parameter_error_map, parameter_mse, relight_scores, time_to_reach
 
 COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
 
@@ -109,8 +111,44 @@ def timing_rows(smk):
     return rows
 
 
+def equal_accuracy_rows(smk, rows, log):
+    """Per synthetic capture, for every method that needs the observations: how long
+    ``mitsuba`` (its logged MSE curve, optimisation time only) takes to reach the method's
+    parameter MSE (``mitsuba_time_to_match_s``, NaN if never within its budget), and that
+    time over the method's whole path from the capture (``speed_ratio_equal_accuracy``:
+    observation extraction plus ``time_total_s``). When mitsuba never gets there, the ratio
+    is its whole budget over the path, a lower bound, and ``mitsuba_reached`` is 0."""
+    value = {(r["object"], r["env"], r["poses"], r["method"], r["metric"]): r["value"] for r in rows}
+    extraction = {key: benchmark(path)[0] for key, path in keyed(smk.params.captures, smk.input.extraction).items()}
+    estimates = keyed(smk.params.synthetic, smk.input.estimates)
+    out = []
+    for (obj, env, poses), extract_s in extraction.items():
+        if (obj, env, poses, "mitsuba") not in estimates:
+            continue
+        curve_file = Path(estimates[obj, env, poses, "mitsuba"]) / "mse_curve.tsv"
+        if not curve_file.is_file():
+            raise FileNotFoundError(f"{curve_file}: no MSE curve (rerun mitsuba_svbrdf for this capture)")
+        curve = pd.read_csv(curve_file, sep="\t")
+        for method in (m for m in smk.params.methods if METHODS[m].rule != "mitsuba_svbrdf"):
+            target, total = value.get((obj, env, poses, method, "mse_average")), value.get((obj, env, poses, method, "time_total_s"))
+            if target is None or total is None:
+                continue
+            reach = time_to_reach(curve.elapsed_s.to_numpy(), curve.mse_average.to_numpy(), target)
+            reached = reach == reach  # not NaN
+            ratio = (reach if reached else float(curve.elapsed_s.iloc[-1])) / (extract_s + total)
+            key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")
+            out += [key | dict(metric="mitsuba_time_to_match_s", value=reach),
+                    key | dict(metric="mitsuba_reached", value=float(reached)),
+                    key | dict(metric="speed_ratio_equal_accuracy", value=ratio)]
+            if method == "freq":
+                log.info("%s/%s: mitsuba reaches freq's MSE %.4f %s; equal-accuracy ratio %s%.1fx", obj, env, target,
+                         f"after {reach:.1f} s" if reached else "never", "" if reached else ">= ", ratio)
+    return out
+
+
 def main(smk, log):
     rows = parameter_rows(smk) + relight_rows(smk, log) + timing_rows(smk)
+    rows += equal_accuracy_rows(smk, rows, log)
     table = pd.DataFrame(rows, columns=COLUMNS)
     with atomic_path(smk.output[0]) as tmp:
         table.to_csv(tmp, index=False, float_format="%.6g")

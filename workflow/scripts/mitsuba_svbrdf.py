@@ -6,7 +6,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from freqbrdf.artefacts import read_svbrdf, write_svbrdf
+from freqbrdf.artefacts import read_observations, read_svbrdf, write_svbrdf
+from freqbrdf.brdf import TEXTURES
+from freqbrdf.metrics import parameter_mse
 from freqbrdf.cameras import cameras_from_json
 from freqbrdf.inverse import InverseSettings, constant_textures, optimise_textures
 from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_json, read_views
@@ -27,6 +29,17 @@ def start_textures(smk) -> dict[str, np.ndarray]:
     return dict(start)
 
 
+def evaluation(smk):
+    """Parameter MSE against the ground truth over the observed texels (as the metrics rule
+    scores it), for a synthetic capture; None for a real one."""
+    if "truth" not in smk.input.keys():
+        return None
+    truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth)))
+    obs = read_observations(smk.input.observations)
+    texels = obs.texels.texel[obs.observed]
+    return lambda textures: {f"mse_{k}": v for k, v in parameter_mse(truth, textures, texels).items()}
+
+
 def main(smk, log):
     mi = setup_mitsuba(threads=smk.threads)
     poses = Path(smk.input.poses) / "cameras.json"
@@ -42,7 +55,7 @@ def main(smk, log):
                  report.loss, report.elapsed_s, report.resident_mb)
 
     result = optimise_textures(mi, smk.input.mesh, read_exr(smk.input.envmap), cameras, images, coverage,
-                               start_textures(smk), settings, progress=progress)
+                               start_textures(smk), settings, progress=progress, evaluate=evaluation(smk))
 
     with atomic_directory(smk.output.estimate) as tmp:
         write_svbrdf(tmp, result.textures)
@@ -51,6 +64,11 @@ def main(smk, log):
                               "view": [cameras.names[k] for k in result.view]})
         with atomic_path(tmp / "loss.tsv") as f:
             table.to_csv(f, sep="\t", index=False)
+        if result.evaluations:
+            with atomic_path(tmp / "mse_curve.tsv") as f:
+                pd.DataFrame(result.evaluations).to_csv(f, sep="\t", index=False, float_format="%.6g")
+            log.info("parameter MSE by epoch: %s", ", ".join(f"{r['mse_average']:.4f} at {r['elapsed_s']:.1f} s"
+                                                            for r in result.evaluations))
         title = f"{smk.wildcards.object} / {smk.wildcards.env}: {smk.wildcards.method}"
         loss_figure(tmp / "loss.png", result.loss, title, ylabel=f"{settings.loss} + TV loss (one view per step)")
 
