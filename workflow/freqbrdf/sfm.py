@@ -51,7 +51,7 @@ import time
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -560,78 +560,141 @@ def reconstruct(
     ValueError
         If ``work_dir`` is ``capture_dir`` or the capture's views do not match ``reference``.
     """
-    import pycolmap
+    import pycolmap  # noqa: F401  (first, so that a missing pycolmap fails before work_dir is cleared)
 
     log = log or logging.getLogger(__name__)
-    capture_dir, work_dir = Path(capture_dir), Path(work_dir)
+    capture_dir = Path(capture_dir)
+    paths = _clear_work_dir(capture_dir, Path(work_dir))
+    names = _write_views(capture_dir, paths, reference, options, log)
+    _extract_features(paths, names, reference, options, log)
+    _match_features(paths, options, log)
+    return _map_views(paths, options, log, capture_dir=capture_dir, n_views=len(names))
+
+
+class _WorkPaths(NamedTuple):
+    """What :func:`reconstruct` keeps in its work directory."""
+
+    root: Path
+    images: Path
+    masks: Path
+    database: Path
+    sparse: Path
+    colmap_log: Path
+
+
+def _clear_work_dir(capture_dir: Path, work_dir: Path) -> _WorkPaths:
+    """Create ``work_dir``, or remove the COLMAP outputs of an earlier run from it."""
     if work_dir.resolve() == capture_dir.resolve():
         raise ValueError(f"work_dir {work_dir} is the capture directory; its images/ and masks/ would be replaced")
     work_dir.mkdir(parents=True, exist_ok=True)
-    database = work_dir / "database.db"
-    sparse = work_dir / "sparse"
-    colmap_log = work_dir / "colmap.log"
-    for path in (database, colmap_log):
+    paths = _WorkPaths(
+        root=work_dir,
+        images=work_dir / "images",
+        masks=work_dir / "masks",
+        database=work_dir / "database.db",
+        sparse=work_dir / "sparse",
+        colmap_log=work_dir / "colmap.log",
+    )
+    for path in (paths.database, paths.colmap_log):
         path.unlink(missing_ok=True)
-    for path in (sparse, work_dir / "images", work_dir / "masks"):
+    for path in (paths.sparse, paths.images, paths.masks):
         shutil.rmtree(path, ignore_errors=True)
-    sparse.mkdir()
+    paths.sparse.mkdir()
+    return paths
 
+
+def _write_views(
+    capture_dir: Path, paths: _WorkPaths, reference: Cameras, options: SfmOptions, log: logging.Logger
+) -> list[str]:
+    """Write the capture's views for COLMAP (:func:`sfm_images`), checked against ``reference``; their image names."""
     start = time.perf_counter()
     names = sfm_images(
-        capture_dir, work_dir, mask_background=options.use_mask,
+        capture_dir, paths.root, mask_background=options.use_mask,
         exposure=options.exposure, mask_erosion_px=options.mask_erosion_px, denoise_sigma=options.denoise_sigma,
     )
     if [view_name(n) for n in names] != list(reference.names):
         raise ValueError(f"{capture_dir}: views {names[:3]}... do not match the reference cameras {reference.names[:3]}...")
     log.info("sfm: %d tone-mapped views written (%.1f s)", len(names), time.perf_counter() - start)
+    return names
+
+
+def _reader_options(options: SfmOptions, reference: Cameras, mask_path: Path) -> pycolmap.ImageReaderOptions:
+    """Image reader options of ``options``: masks, and the camera model (PINHOLE with the reference ``K`` if known)."""
+    import pycolmap
 
     reader = pycolmap.ImageReaderOptions()
     if options.use_mask:
-        reader.mask_path = work_dir / "masks"
-    same_K = bool(np.all(reference.K == reference.K[0]))
+        reader.mask_path = mask_path
     if options.known_intrinsics:
         reader.camera_model = "PINHOLE"
         reader.camera_params = _camera_params(reference.K[0])
     else:
         reader.camera_model = options.camera_model
+    return reader
+
+
+def _extract_features(
+    paths: _WorkPaths, names: list[str], reference: Cameras, options: SfmOptions, log: logging.Logger
+) -> None:
+    """Seed COLMAP, import the views into a new database and extract their SIFT features."""
+    import pycolmap
+
+    reader = _reader_options(options, reference, paths.masks)
+    same_K = bool(np.all(reference.K == reference.K[0]))
     camera_mode = pycolmap.CameraMode.SINGLE if same_K else pycolmap.CameraMode.PER_IMAGE
 
+    # Seeds COLMAP's global PRNG for the rest of the run too (module docstring, determinism).
     pycolmap.set_random_seed(options.seed)
     t = time.perf_counter()
-    with _output_to_file(colmap_log):
+    with _output_to_file(paths.colmap_log):
         # Import first, in name order: the multi-threaded extractor otherwise
         # numbers images in the order its threads finish, and image ids steer
         # pair ordering and the mapper's choices.
-        pycolmap.Database.open(database).close()
-        pycolmap.import_images(database, work_dir / "images", camera_mode=camera_mode, image_names=names, options=reader)
+        pycolmap.Database.open(paths.database).close()
+        pycolmap.import_images(paths.database, paths.images, camera_mode=camera_mode, image_names=names, options=reader)
         pycolmap.extract_features(
-            database, work_dir / "images", image_names=names, camera_mode=camera_mode,
+            paths.database, paths.images, image_names=names, camera_mode=camera_mode,
             reader_options=reader, extraction_options=_extraction_options(options), device=pycolmap.Device.cpu,
         )
+    # The reader gives all views of one import the same camera_params, so
+    # differing reference intrinsics are written into the database afterwards.
     if options.known_intrinsics and not same_K:
-        _set_known_cameras(database, reference)
+        _set_known_cameras(paths.database, reference)
     log.info("sfm: SIFT features extracted (%.1f s)", time.perf_counter() - t)
-    t = time.perf_counter()
 
+
+def _match_features(paths: _WorkPaths, options: SfmOptions, log: logging.Logger) -> None:
+    """Match the features of every pair of views and verify the pairs' two-view geometry."""
+    import pycolmap
+
+    t = time.perf_counter()
     matching, verification = _matching_options(options)
-    with _output_to_file(colmap_log):
+    with _output_to_file(paths.colmap_log):
         pycolmap.match_exhaustive(
-            database, matching_options=matching, verification_options=verification, device=pycolmap.Device.cpu
+            paths.database, matching_options=matching, verification_options=verification, device=pycolmap.Device.cpu
         )
     log.info("sfm: exhaustive matching and verification done (%.1f s)", time.perf_counter() - t)
 
+
+def _map_views(
+    paths: _WorkPaths, options: SfmOptions, log: logging.Logger, *, capture_dir: Path, n_views: int
+) -> pycolmap.Reconstruction:
+    """Map the views incrementally into ``paths.sparse``; the model with the most registered views."""
+    import pycolmap
+
     t = time.perf_counter()
-    with _output_to_file(colmap_log):
-        models = pycolmap.incremental_mapping(database, work_dir / "images", sparse, _mapping_options(options, work_dir / "images"))
+    with _output_to_file(paths.colmap_log):
+        models = pycolmap.incremental_mapping(paths.database, paths.images, paths.sparse, _mapping_options(options, paths.images))
     if not models:
         raise TooFewRegisteredError(
-            f"COLMAP registered 0 of {len(names)} views of {capture_dir}: no model (see {colmap_log}); {_advice()}"
+            f"COLMAP registered 0 of {n_views} views of {capture_dir}: no model (see {paths.colmap_log}); {_advice()}"
         )
+    # sorted: ties go to the lowest model index, whatever the dict's order.
     best = max(sorted(models), key=lambda k: models[k].num_reg_images())
     model = models[best]
     log.info(
         "sfm: incremental mapping done, %d model(s), largest %d of %d views registered (%.1f s)",
-        len(models), model.num_reg_images(), len(names), time.perf_counter() - t,
+        len(models), model.num_reg_images(), n_views, time.perf_counter() - t,
     )
     return model
 
@@ -748,34 +811,14 @@ def aligned_cameras(
         If a registered view is not in the reference, or fewer than 3 views
         are registered, or no similarity is found.
     """
-    import pycolmap
-
     poses = registered_poses(reconstruction)
-    unknown = sorted(set(poses) - set(reference.names))
-    if unknown:
-        raise ValueError(f"registered view {unknown[0]!r} is not among the reference cameras")
-    names = [n for n in reference.names if n in poses]
-    if len(names) < 3:
-        raise ValueError(f"only {len(names)} registered views; a similarity needs at least 3")
+    names = _registered_names(poses, reference)
     index = {n: i for i, n in enumerate(reference.names)}
     ref_centres = reference.centres[[index[n] for n in names]]
     w2c = np.stack([poses[n][0] for n in names])
     est_centres = -np.einsum("nji,nj->ni", w2c[:, :3, :3], w2c[:, :3, 3])
     distance = float(np.median(np.linalg.norm(reference.centres, axis=1)))
-    ransac = pycolmap.RANSACOptions()
-    ransac.max_error = max_error_rel * distance
-    ransac.random_seed = seed
-    robust = pycolmap.estimate_sim3d_robust(est_centres, ref_centres, ransac)
-    if robust is None or int(robust["num_inliers"]) < 3:
-        raise ValueError(f"no similarity aligns the {len(names)} registered camera centres to the reference")
-    # COLMAP's LO-RANSAC picks the inliers; a least-squares (Umeyama) fit on all
-    # of them is then more accurate than the model the RANSAC returns.
-    inliers = np.asarray(robust["inlier_mask"], dtype=bool)
-    sim = pycolmap.estimate_sim3d(est_centres[inliers], ref_centres[inliers])
-    if sim is None:
-        raise ValueError(f"no similarity aligns the {len(names)} registered camera centres to the reference")
-    S = np.eye(4)
-    S[:3, :] = sim.matrix()
+    S = _centre_similarity(est_centres, ref_centres, max_error=max_error_rel * distance, seed=seed)
     w2c = transform_world_to_camera(w2c, S)
     cameras = Cameras(
         K=np.stack([poses[n][1] for n in names]),
@@ -785,6 +828,39 @@ def aligned_cameras(
         names=tuple(names),
     )
     return cameras, S
+
+
+def _registered_names(poses: Mapping[str, object], reference: Cameras) -> list[str]:
+    """Names of the registered views in reference order, checked to be reference views and at least 3."""
+    unknown = sorted(set(poses) - set(reference.names))
+    if unknown:
+        raise ValueError(f"registered view {unknown[0]!r} is not among the reference cameras")
+    names = [n for n in reference.names if n in poses]
+    if len(names) < 3:
+        raise ValueError(f"only {len(names)} registered views; a similarity needs at least 3")
+    return names
+
+
+def _centre_similarity(source: np.ndarray, target: np.ndarray, *, max_error: float, seed: int) -> np.ndarray:
+    """Similarity (4, 4) taking camera centres ``source`` (N, 3) onto ``target`` (N, 3), robust to misplaced views."""
+    import pycolmap
+
+    failure = f"no similarity aligns the {len(source)} registered camera centres to the reference"
+    ransac = pycolmap.RANSACOptions()
+    ransac.max_error = max_error
+    ransac.random_seed = seed
+    robust = pycolmap.estimate_sim3d_robust(source, target, ransac)
+    if robust is None or int(robust["num_inliers"]) < 3:
+        raise ValueError(failure)
+    # COLMAP's LO-RANSAC picks the inliers; a least-squares (Umeyama) fit on all
+    # of them is then more accurate than the model the RANSAC returns.
+    inliers = np.asarray(robust["inlier_mask"], dtype=bool)
+    sim = pycolmap.estimate_sim3d(source[inliers], target[inliers])
+    if sim is None:
+        raise ValueError(failure)
+    S = np.eye(4)
+    S[:3, :] = sim.matrix()
+    return S
 
 
 def rotation_angle_deg(R: np.ndarray) -> np.ndarray:
