@@ -5,7 +5,7 @@ from pathlib import Path
 from freqbrdf.brdf import TEXTURES
 from freqbrdf.config import derived_seed
 from freqbrdf.dependencies import script_modules
-from freqbrdf.methods import METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
+from freqbrdf.methods import FREQUENCY_RULES, METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
 
 SYNTHETIC_OBJECTS = list(config["objects"])
 REAL_CAPTURES = config["real_captures"]  # name -> {dir, env}: captures imported from disk

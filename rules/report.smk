@@ -2,8 +2,8 @@
 # These rules read finished outputs only and take no config that upstream rules
 # use, so changing a metric setting reruns metrics, then these, and nothing else.
 
-# Stems of the table files (freqbrdf.tables.summaries keys): the paper's Tables 1, 2, 4, 5 and the claims.
-TABLES = ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "claims"]
+# Stems of the table files (freqbrdf.tables.summaries keys): the paper's Tables 1, 2, 4, 5, 6 and the claims.
+TABLES = ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "table6_merge", "claims"]
 
 
 def report_outputs():
@@ -19,7 +19,7 @@ def report_outputs():
 
 # Methods with a logged MSE curve (differentiable rendering) and those shown as points.
 CONVERGENCE_CURVES = [m for m in METHODS if METHOD_REGISTRY[m].rule == "mitsuba_svbrdf"]
-CONVERGENCE_POINTS = [m for m in METHODS if METHOD_REGISTRY[m].rule != "mitsuba_svbrdf"]
+CONVERGENCE_POINTS = [m for m in METHODS if METHOD_REGISTRY[m].rule in FREQUENCY_RULES]
 
 
 def capture_relights(wildcards):
@@ -48,7 +48,7 @@ rule tables:
         **{f"{t}_{ext}": f"results/tables/{t}.{ext}" for t in TABLES for ext in ("md", "tex")},
         all_md="results/tables/tables.md",
         html=report("results/tables/tables.html", category="Tables", caption="../report/tables.rst",
-                    labels={"table": "Tables 1, 2, 4, 5"}),
+                    labels={"table": "Tables 1, 2, 4, 5, 6"}),
         claims_html=report("results/tables/claims.html", category="Tables", caption="../report/claims.rst",
                            labels={"table": "claims"}),
     params:

@@ -7,6 +7,7 @@ import sys
 import numpy as np
 import pytest
 
+from freqbrdf.methods import FREQUENCY_RULES, METHODS
 from freqbrdf.cameras import cameras_from_json, project
 from freqbrdf.io import read_exr, read_json, read_png
 from freqbrdf.meshes import read_ply
@@ -232,7 +233,7 @@ def test_metrics_csv_has_every_row(repo, run):
         final = table[(table.object == "sphere") & (table.method == "mitsuba") & (table.metric == "mse_average")]
         assert curve.mse_average.iloc[-1] == pytest.approx(final.value.iloc[0], rel=1e-4)
         # the equal-accuracy ratio of every method that needs the observations (synthetic capture only)
-        frequency = sorted(m for m in methods if m not in ("mitsuba", "freq+mitsuba"))
+        frequency = sorted(m for m in methods if METHODS[m].rule in FREQUENCY_RULES)
         equal = table[table.metric == "speed_ratio_equal_accuracy"]
         assert sorted(equal.method) == frequency and set(equal.object) == {"sphere"} and (equal.value >= 0).all()
 

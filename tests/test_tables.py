@@ -48,6 +48,7 @@ def full_run(overrides=None) -> pd.DataFrame:
         ("spectrum", "psnr_h"): 24.0,
         ("mitsuba", "pearson_entropy_error"): 0.2, ("freq", "pearson_entropy_error"): 0.3,
         ("freq", "speed_ratio_equal_accuracy"): 15.0, ("freq", "mitsuba_reached"): 1.0,
+        ("mitsuba_merged", "mse_average"): 0.035,
     }
     values.update(overrides or {})
     rows = []
@@ -159,6 +160,7 @@ def test_every_claim_holds_on_consistent_data():
     ({("freq+mitsuba", "time_total_s"): 40.0}, "Ours + Mitsuba beats Mitsuba alone in less than a third of its time"),
     ({("freq+mitsuba", "psnr_h"): 25.9}, "Ours + Mitsuba beats Mitsuba alone in less than a third of its time"),
     ({("mitsuba", "pearson_entropy_error"): -0.1}, "Our entropy correlates positively with Mitsuba's per-texel error"),
+    ({("mitsuba_merged", "mse_average"): 0.04}, "Merging captures by entropy beats their average"),
 ])
 def test_a_claim_flips_when_the_data_contradict_it(overrides, claim):
     flipped = [claim] if isinstance(claim, str) else list(claim)
@@ -195,6 +197,16 @@ def test_equal_accuracy_ratio_is_the_fewest_over_captures_and_marks_lower_bounds
     df.loc[(df.object == "torus") & (df.metric == "mitsuba_reached"), "value"] = 0.0
     assert tables.equal_accuracy_ratio(df, "freq") == (15.0, False)
     assert cell(relighting_table(df, PAPER), "x Mitsuba, equal MSE", method="freq") == ">= 15.0x"
+
+
+def test_merge_table_sets_each_merge_beside_the_mean_of_what_it_merges():
+    df = full_run({("freq_merged", "mse_average"): 0.055})
+    table = tables.merge_table(df, PAPER)
+    assert list(table.method) == ["mitsuba", "mitsuba_merged", "freq", "freq_merged"]
+    assert cell(table, "MSE", method="mitsuba_merged").startswith("0.035 ")
+    assert cell(table, "MSE (paper)", method="mitsuba_merged") == "0.03 (0.01, 0.02, 0.06)"
+    assert cell(table, "MSE (paper)", method="mitsuba") == "0.04 (0.01, 0.03, 0.07)"
+    assert cell(table, "MSE (paper)", method="freq_merged") == tables.MISSING  # the paper merged Mitsuba's only
 
 
 def test_speed_ratio_prefers_the_reported_ratio():
@@ -333,7 +345,8 @@ def test_the_loader_reads_the_papers_numbers():
 
 
 def test_every_paper_row_of_the_registry_is_in_the_papers_table():
-    rows = {"table1": PAPER.table1, "table2": PAPER.table2, "table4": PAPER.table4, "table5": PAPER.table5}
+    rows = {"table1": PAPER.table1, "table2": PAPER.table2, "table4": PAPER.table4, "table5": PAPER.table5,
+            "table6": PAPER.table6}
     for name, method in METHODS.items():
         for table, row in method.paper_rows.items():
             assert row in rows[table], f"method {name}: {table} row {row!r} is not in {PAPER_FILE.name}"
@@ -353,6 +366,7 @@ def test_claims_quote_the_papers_numbers():
         "PSNR-H 27.04 vs 26.68 dB (Tables 1, 5)",
         "PSNR-H +0.44 dB, 19.87 s vs 69.96 s (Table 5)",
         "Pearson 0.13 to 0.21, mean 0.16 (Table 2)",
+        "MSE 0.03 vs 0.04 (Table 6)",
     ]
     criteria = list(claims(full_run(), PAPER).criterion)
     assert "MSE(freq) - MSE(mitsuba) <= 0.03" in criteria
@@ -382,6 +396,7 @@ def test_extra_methods_follow_the_registrys_order():
     assert names[3:] == [m for m in METHODS if m in set(df.method) and m not in paired]
 
 
-def test_summaries_cover_the_four_tables_and_the_claims():
+def test_summaries_cover_the_five_tables_and_the_claims():
     keys = [s.key for s in tables.summaries(full_run(), PAPER, ENV_KINDS)]
-    assert keys == ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "claims"]
+    assert keys == ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "table6_merge",
+                    "claims"]

@@ -18,10 +18,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
-ESTIMATOR_RULES = ("spectrum_search", "optimise_svbrdf", "mitsuba_svbrdf")
+ESTIMATOR_RULES = ("spectrum_search", "optimise_svbrdf", "mitsuba_svbrdf", "merge_svbrdf")
 """The rules that write ``results/estimates/{object}/{env}/{poses}/{method}``."""
 
-PAPER_TABLES = ("table1", "table2", "table4", "table5")
+FREQUENCY_RULES = ("spectrum_search", "optimise_svbrdf")
+"""The rules of the frequency-domain methods: they need the observations, Mitsuba's methods do not."""
+
+PAPER_TABLES = ("table1", "table2", "table4", "table5", "table6")
 
 
 @dataclass(frozen=True)
@@ -39,7 +42,8 @@ class Method:
         The rule that estimates it (one of :data:`ESTIMATOR_RULES`).
     start : str or None
         The method whose estimate this one starts from (``freq+mitsuba``
-        fine-tunes ``freq``); None: the rule's own start.
+        fine-tunes ``freq``; ``merge_svbrdf`` merges this method's estimates
+        of every capture of the object); None: the rule's own start.
     shadowing, masking : bool
         Smith G1 on the incoming light (shadowing) and on the outgoing
         direction (masking) in the frequency-domain model (paper section 4.2;
@@ -102,6 +106,10 @@ METHODS: Mapping[str, Method] = build_registry(
            paper_rows={"table1": "Mitsuba", "table2": "Mitsuba", "table5": "Full optimization - Constant"}),
     Method("freq+mitsuba", "Ours+Mitsuba", "mitsuba_svbrdf", start="freq",
            paper_rows={"table1": "Ours+Mitsuba (1 epoch)", "table5": "Ours"}),
+    # paper Table 6 merges Mitsuba's results: its "Average" row is Mitsuba's Table 2 average
+    Method("mitsuba_merged", "Mitsuba, entropy-merged", "merge_svbrdf", start="mitsuba",
+           paper_rows={"table6": "argmin Entropy"}),
+    Method("freq_merged", "Ours, entropy-merged", "merge_svbrdf", start="freq"),
 )
 """Every method, in the order of tables and figures."""
 

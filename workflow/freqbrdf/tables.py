@@ -65,7 +65,9 @@ CRITERIA_FIELDS = ("accuracy_tolerance_mse", "relight_tolerance_db", "finetune_t
 # alike; in Table 5, "Ours" is fine-tuned and the last row is Mitsuba alone.
 MITSUBA, OURS, SPECTRUM = "Mitsuba", "Ours", "Ours-Spectrum Only"
 FINETUNED, MITSUBA_FULL = "Ours", "Full optimization - Constant"
-CLAIM_ROWS = {"table1": (MITSUBA, OURS), "table2": (MITSUBA, OURS, SPECTRUM), "table5": (FINETUNED, MITSUBA_FULL)}
+MERGE_AVERAGE = "Average"  # Table 6: the mean over the separate environments
+CLAIM_ROWS = {"table1": (MITSUBA, OURS), "table2": (MITSUBA, OURS, SPECTRUM), "table5": (FINETUNED, MITSUBA_FULL),
+              "table6": (MERGE_AVERAGE,)}
 
 
 class PaperResultsError(ValueError):
@@ -125,6 +127,8 @@ class PaperResults:
         Paper environment name, or :data:`AVERAGE`, -> that correlation.
     table4 : Mapping[str, AblationRow]
         Row label -> flags and numbers; one row per (shadowing, masking) pair.
+    table6 : Mapping[str, tuple of float]
+        Row label -> (average, base colour, roughness, metallic) MSE of the entropy-guided merge.
     criteria : ClaimCriteria
     """
 
@@ -135,6 +139,7 @@ class PaperResults:
     correlation: Mapping[str, float]
     table4: Mapping[str, AblationRow]
     table5: Mapping[str, Mapping[str, float]]
+    table6: Mapping[str, tuple[float, float, float, float]]
     criteria: ClaimCriteria
 
     def ablation_row(self, shadowing: bool, masking: bool) -> AblationRow:
@@ -248,12 +253,13 @@ def parse_paper_results(data: object) -> PaperResults:
     PaperResultsError
         ``key <dotted.path>: <what is wrong>``.
     """
-    top = _record(data, "", ("table1", "table2", "table4", "table5", "claims"))
+    top = _record(data, "", ("table1", "table2", "table4", "table5", "table6", "claims"))
     environments, table2, correlated, correlation = _table2(top["table2"])
     paper = PaperResults(
         table1=_relight_rows(top["table1"], "table1"), environments=environments, table2=table2,
         correlation_with=correlated, correlation=correlation, table4=_table4(top["table4"]),
         table5=_relight_rows(top["table5"], "table5"),
+        table6={label: _mse_parts(row, _key("table6", label)) for label, row in _mapping(top["table6"], "table6").items()},
         criteria=ClaimCriteria(**_numbers(top["claims"], "claims", CRITERIA_FIELDS)),
     )
     for table, labels in CLAIM_ROWS.items():
@@ -619,6 +625,31 @@ def finetune_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd
     return pd.DataFrame(rows)
 
 
+def merge_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd.DataFrame:
+    """Paper Table 6: each entropy-merged method beside the mean of the estimates it merges.
+
+    Returns
+    -------
+    DataFrame of str
+        ``Method, method, MSE, MSE (paper)``: for every ``merge_svbrdf`` method of the run,
+        a row for the average over the separate captures of its start method, then its own,
+        each as ``average (base colour, roughness, metallic)``.
+    """
+    rows = []
+    for method in ordered_methods(df[df.metric == "mse_average"].method):
+        entry = METHODS[method]
+        if entry.rule != "merge_svbrdf":
+            continue
+        merged_row = entry.paper_rows.get("table6")
+        for shown, label, paper_row in ((entry.start, f"{method_label(entry.start)}, average over captures",
+                                         MERGE_AVERAGE if merged_row else None),
+                                        (method, method_label(method), merged_row)):
+            parts = [mean_metric(df, shown, f"mse_{k}") for k in ("average", "base_color", "roughness", "metallic")]
+            rows.append({"Method": label, "method": shown, "MSE": _mse_cell(parts, digits),
+                         "MSE (paper)": _mse_cell(paper.table6[paper_row], 2) if paper_row else MISSING})
+    return pd.DataFrame(rows, columns=["Method", "method", "MSE", "MSE (paper)"])
+
+
 # ---------------------------------------------------------------------------
 # Claims
 # ---------------------------------------------------------------------------
@@ -810,9 +841,25 @@ def _entropy_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
     )
 
 
+def _merge_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    merged = next((m for m, e in METHODS.items() if "table6" in e.paper_rows), None)
+    start = METHODS[merged].start if merged else None
+    ours, average = (_mse(df, merged), _mse(df, start)) if merged and _ran(df, merged, start) else (None, None)
+    known = ours is not None and average is not None
+    label = paper.table6.get(METHODS[merged].paper_rows["table6"]) if merged else None
+    return Claim(
+        "Merging captures by entropy beats their average",
+        f"MSE {fmt_paper(label[0], 2)} vs {fmt_paper(paper.table6[MERGE_AVERAGE][0], 2)} (Table 6)" if label
+        else MISSING,
+        f"MSE {fmt(ours)} vs {fmt(average)} ({merged} vs {start})" if known else MISSING,
+        _verdict(ours < average if known else None),
+        f"MSE({merged}) < MSE({start}), both means over the captures",
+    )
+
+
 _CLAIMS: tuple[Callable[[pd.DataFrame, PaperResults], Claim], ...] = (
     _speed_claim, _speed_order_claim, _accuracy_claim, _relight_claim, _spectrum_claim,
-    _ablation_claim, _finetune_claim, _finetune_time_claim, _entropy_claim,
+    _ablation_claim, _finetune_claim, _finetune_time_claim, _entropy_claim, _merge_claim,
 )
 
 
@@ -1021,7 +1068,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
     -------
     list of Summary
         Keys ``table1_relighting``, ``table2_parameters``, ``table4_ablation``,
-        ``table5_finetune``, ``claims`` (the output file stems).
+        ``table5_finetune``, ``table6_merge``, ``claims`` (the output file stems).
     """
     n_captures = len(df[["object", "env"]].drop_duplicates())
     n_truth = len(df[df.metric == "mse_average"][["object", "env"]].drop_duplicates())
@@ -1052,6 +1099,11 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "full optimisation from a constant (mitsuba) and our textures alone (freq). Total time "
                 "includes the initialisation. Rows without a method of ours are not in this pipeline. " + scope,
                 finetune_table(df, paper)),
+        Summary("table6_merge", "Table 6: captures merged by entropy",
+                "One texture set per object from all its captures: each texel takes the parameters of the "
+                "capture whose spectrum entropy is lowest there, against the mean of the separate captures' "
+                "estimates; parameter MSE as in Table 2. The paper merged Mitsuba's results. " + scope,
+                merge_table(df, paper)),
         Summary("claims", "Claims of the paper, checked on this run",
                 "holds: 'yes' or 'no' by the stated criterion on this run's means; 'not run' when a method "
                 "it needs is not in the configuration's methods or produced no such metric. " + scope,

@@ -17,7 +17,7 @@ from freqbrdf.brdf import TEXTURES
 from freqbrdf.cameras import cameras_from_json
 from freqbrdf.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.logs import run_script
-from freqbrdf.methods import METHODS
+from freqbrdf.methods import FREQUENCY_RULES, METHODS
 from freqbrdf.metrics import parameter_error_map, parameter_mse, relight_scores, time_to_reach
 
 COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
@@ -129,7 +129,7 @@ def equal_accuracy_rows(smk, rows, log):
         if not curve_file.is_file():
             raise FileNotFoundError(f"{curve_file}: no MSE curve (rerun mitsuba_svbrdf for this capture)")
         curve = pd.read_csv(curve_file, sep="\t")
-        for method in (m for m in smk.params.methods if METHODS[m].rule != "mitsuba_svbrdf"):
+        for method in (m for m in smk.params.methods if METHODS[m].rule in FREQUENCY_RULES):
             target, total = value.get((obj, env, poses, method, "mse_average")), value.get((obj, env, poses, method, "time_total_s"))
             if target is None or total is None:
                 continue
