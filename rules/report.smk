@@ -12,6 +12,7 @@ def report_outputs():
     outputs += ["results/tables/tables.md", "results/tables/tables.html", "results/tables/claims.html"]
     outputs += [f"results/figures/{o}/{e}/{POSES}/maps.png" for o, e in CAPTURES]
     outputs += [f"results/figures/{o}/{e}/{POSES}/relight.png" for o, e in SYNTHETIC_CAPTURES]
+    outputs += [f"results/figures/{o}/{e}/{POSES}/regulariser.png" for o, e in CAPTURES]
     if CONVERGENCE_CURVES:
         outputs += [f"results/figures/{o}/{e}/{POSES}/convergence.png" for o, e in SYNTHETIC_CAPTURES]
     return outputs
@@ -128,6 +129,31 @@ rule convergence_figure:
         points=CONVERGENCE_POINTS,
     log:
         "results/logs/convergence_figure/{object}_{env}_{poses}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/report_figures.py"
+
+
+rule regulariser_figure:
+    """Paper Fig. 3 on a capture's own samples: how well each SH fit option (exp, constant, none,
+    zero-padding) keeps a known lobe in the ratio of the spectra of filtered and unfiltered light."""
+    input:
+        observations="results/observations/{object}/{env}/{poses}",
+        envmap=envmap_file,
+        code=library("report_figures"),
+    output:
+        figure=report("results/figures/{object}/{env}/{poses}/regulariser.png", category="Captures",
+                      subcategory="{object} / {env}", caption="../report/capture_regulariser.rst",
+                      labels={"capture": "{object} / {env}", "figure": "SH fit options"}),
+        table="results/figures/{object}/{env}/{poses}/regulariser.tsv",
+    params:
+        sh=config["sh"],
+        texels=1000,  # observed texels sampled (seeded)
+        alpha=0.3,  # the lobe filtering the light (roughness 0.55, mid-range of the benchmark)
+        seed=lambda w: derived_seed(config["seed"], "regulariser", w.object, w.env, w.poses),
+    log:
+        "results/logs/regulariser_figure/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
     script:

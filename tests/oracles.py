@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from freqbrdf.brdf import R0_DIELECTRIC
-from freqbrdf.sh import fibonacci_hemisphere, real_sh, sh_degrees
-from freqbrdf.validation import check_int, check_positive, check_shape, lmax_of
+from freqbrdf.sh import real_sh, sh_degrees
+from freqbrdf.validation import check_int, check_shape, lmax_of
 
 LOCAL_NORMAL = (0.0, 0.0, 1.0)
 
@@ -184,44 +184,3 @@ def smith_g1(cos_theta: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return 2.0 / (1.0 + np.sqrt(1.0 + a * a * (1.0 - c2) / c2))
 
 
-def lower_hemisphere_points(n: int) -> np.ndarray:
-    """Fibonacci points on the local lower (-z) hemisphere, (n, 3)."""
-    p = fibonacci_hemisphere(n)  # about +Y
-    return np.stack([p[:, 0], p[:, 2], -p[:, 1]], axis=-1)  # rotation taking +Y to -z
-
-
-def zero_pad_lower_hemisphere(
-    directions: np.ndarray, values: np.ndarray, weights: np.ndarray, n_pad: int, pad_weight: float = 1.0
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Append samples of value 0 on the local lower hemisphere (paper Fig. 3 baseline).
-
-    Parameters
-    ----------
-    directions, values, weights : numpy.ndarray
-        Shapes ``(T, K, 3)``, ``(T, K, C)``, ``(T, K)`` as for `fit_sh`.
-    n_pad : int
-        Number of Fibonacci directions added on ``z < 0`` (same for every texel).
-    pad_weight : float
-        Weight of the added samples.
-
-    Returns
-    -------
-    tuple of numpy.ndarray
-        Directions ``(T, K + n_pad, 3)``, values ``(T, K + n_pad, C)``, weights
-        ``(T, K + n_pad)``.
-    """
-    d = np.asarray(directions, dtype=np.float64)
-    f = np.asarray(values, dtype=np.float64)
-    w = np.asarray(weights, dtype=np.float64)
-    check_shape(d, "directions", (None, None, 3))
-    check_shape(f, "values", (d.shape[0], d.shape[1], None))
-    check_shape(w, "weights", (d.shape[0], d.shape[1]))
-    n_pad = check_int(n_pad, "n_pad", 1)
-    pad_weight = check_positive(pad_weight, "pad_weight")
-    n_tex = d.shape[0]
-    pad = np.broadcast_to(lower_hemisphere_points(n_pad), (n_tex, n_pad, 3))
-    return (
-        np.concatenate([d, pad], axis=1),
-        np.concatenate([f, np.zeros((n_tex, n_pad, f.shape[2]))], axis=1),
-        np.concatenate([w, np.full((n_tex, n_pad), pad_weight)], axis=1),
-    )

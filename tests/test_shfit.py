@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-import oracles
 from freqbrdf import sh, shfit
 
 LMAX = 6
@@ -204,7 +203,7 @@ def fig3_errors(
     out = {}
     for name in ("exp", "constant", "none", "zero_pad"):
         if name == "zero_pad":
-            dd, vv, ww = oracles.zero_pad_lower_hemisphere(d[None], values, w[None], 100)
+            dd, vv, ww = shfit.zero_pad_lower_hemisphere(d[None], values, w[None], 100)
             coeffs = shfit.fit_sh(dd, vv, ww, LMAX, "none")
         else:
             coeffs = shfit.fit_sh(d[None], values, w[None], LMAX, name, 1e-3)
@@ -226,7 +225,7 @@ def test_exp_regulariser_recovers_the_filter_best(mask: str, sphere_quadrature) 
 
 def test_zero_pad_appends_lower_hemisphere_zeros() -> None:
     d = upper_hemisphere(5)[None]
-    dd, vv, ww = oracles.zero_pad_lower_hemisphere(d, np.ones((1, 5, 2)), np.ones((1, 5)), 7, pad_weight=0.5)
+    dd, vv, ww = shfit.zero_pad_lower_hemisphere(d, np.ones((1, 5, 2)), np.ones((1, 5)), 7, pad_weight=0.5)
     assert dd.shape == (1, 12, 3) and vv.shape == (1, 12, 2) and ww.shape == (1, 12)
     assert np.all(dd[0, 5:, 2] < 0) and np.all(vv[0, 5:] == 0) and np.all(ww[0, 5:] == 0.5)
     np.testing.assert_allclose(np.linalg.norm(dd, axis=-1), 1.0)
@@ -254,3 +253,25 @@ def test_validation_messages_name_the_bad_value() -> None:
         shfit.fit_sh(np.ones((2, 3, 3)), f, w, 2, "exp", 0.0)
     with pytest.raises(ValueError, match="dual"):
         shfit.fit_sh(np.ones((2, 3, 3)), f, w, 2, "none", solver="dual")
+
+
+def test_spectrum_log_ratio_is_zero_for_the_truth_and_follows_a_filter() -> None:
+    rng = np.random.default_rng(12)
+    truth = rng.normal(size=(3, sh.n_coeffs(LMAX), 2))
+    np.testing.assert_allclose(shfit.spectrum_log_ratio(truth, truth), 0.0, atol=1e-12)
+    filtered = filter_coeffs(truth.transpose(1, 0, 2), 0.2).transpose(1, 0, 2)
+    ratio = shfit.spectrum_log_ratio(filtered, truth)  # the filter multiplies S(l) by exp(-2 (0.2 l)^2)
+    np.testing.assert_allclose(ratio[0, :, 0], -2 * (0.2 * np.arange(1, LMAX + 1)) ** 2, rtol=1e-9)
+
+
+def test_fit_options_are_the_fits_of_fig3() -> None:
+    rng = np.random.default_rng(13)
+    d = random_unit((3, 20), rng)
+    f, w = rng.normal(size=(3, 20, 2)), rng.random((3, 20))
+    for option in ("exp", "constant", "none"):
+        np.testing.assert_array_equal(shfit.fit_option(option, d, f, w, 4, 1e-2),
+                                      shfit.fit_sh(d, f, w, 4, option, 1e-2, penalise_dc=True))
+    padded = shfit.fit_sh(*shfit.zero_pad_lower_hemisphere(d, f, w, 20), 4, "none")
+    np.testing.assert_array_equal(shfit.fit_option("zero_pad", d, f, w, 4), padded)
+    with pytest.raises(ValueError, match="'ridge'"):
+        shfit.fit_option("ridge", d, f, w, 4)

@@ -237,3 +237,30 @@ def convergence_figure(
     ax.legend(fontsize=7, ncol=2)
     ax.set_title(title, fontsize=9)
     save_figure(fig, path, dpi=100)
+
+
+def regulariser_figure(path: str | os.PathLike, ratios: Mapping[str, np.ndarray], title: str) -> None:
+    """Per fit option, the error of the fitted log(S_B / S_L) per degree over texels (paper Fig. 3).
+
+    Parameters
+    ----------
+    path : path-like
+        PNG destination.
+    ratios : mapping of option to ndarray, shape (T, lmax)
+        The error of each texel at degrees 1..lmax (NaN ignored); 0 is exact.
+    title : str
+        Figure title.
+    """
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.0, 3.6), layout="constrained")
+    for option, ratio in ratios.items():
+        degrees = np.arange(1, ratio.shape[1] + 1)
+        q25, q50, q75 = np.nanpercentile(ratio, [25, 50, 75], axis=0)
+        ax.plot(degrees, q50, marker="o", markersize=3, label=option)
+        ax.fill_between(degrees, q25, q75, alpha=0.2)
+    ax.axhline(0.0, color="black", linewidth=0.6)
+    ax.set_xlabel("SH degree l")
+    ax.set_ylabel("error of log(S_B / S_L)")
+    ax.legend(fontsize=8, title="fit (median, quartiles over texels)", title_fontsize=7)
+    ax.set_title(title, fontsize=9)
+    save_figure(fig, path, dpi=100)

@@ -43,8 +43,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from .sh import n_coeffs, real_sh, sh_degrees
-from .validation import check_choice, check_int, check_shape
+from .sh import fibonacci_hemisphere, n_coeffs, real_sh, sh_degrees
+from .validation import check_choice, check_int, check_positive, check_shape
 
 REGULARISERS = ("exp", "constant", "none")
 _FILL_DIRECTION = (0.0, 0.0, 1.0)  # any unit vector: stands in for unobserved samples
@@ -308,3 +308,85 @@ def _solve_chunks(
         with ThreadPoolExecutor(max_workers=workers) as pool:
             list(pool.map(solve, starts))
     return out
+
+
+def _lower_hemisphere_points(n: int) -> np.ndarray:
+    """Fibonacci points on the local lower (-z) hemisphere, (n, 3)."""
+    p = fibonacci_hemisphere(n)  # about +Y
+    return np.stack([p[:, 0], p[:, 2], -p[:, 1]], axis=-1)  # rotation taking +Y to -z
+
+
+def zero_pad_lower_hemisphere(
+    directions: np.ndarray, values: np.ndarray, weights: np.ndarray, n_pad: int, pad_weight: float = 1.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Append samples of value 0 on the local lower hemisphere (paper Fig. 3 baseline).
+
+    Parameters
+    ----------
+    directions, values, weights : numpy.ndarray
+        Shapes ``(T, K, 3)``, ``(T, K, C)``, ``(T, K)`` as for `fit_sh`.
+    n_pad : int
+        Number of Fibonacci directions added on ``z < 0`` (same for every texel).
+    pad_weight : float
+        Weight of the added samples.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        Directions ``(T, K + n_pad, 3)``, values ``(T, K + n_pad, C)``, weights
+        ``(T, K + n_pad)``.
+    """
+    d = np.asarray(directions, dtype=np.float64)
+    f = np.asarray(values, dtype=np.float64)
+    w = np.asarray(weights, dtype=np.float64)
+    check_shape(d, "directions", (None, None, 3))
+    check_shape(f, "values", (d.shape[0], d.shape[1], None))
+    check_shape(w, "weights", (d.shape[0], d.shape[1]))
+    n_pad = check_int(n_pad, "n_pad", 1)
+    pad_weight = check_positive(pad_weight, "pad_weight")
+    n_tex = d.shape[0]
+    pad = np.broadcast_to(_lower_hemisphere_points(n_pad), (n_tex, n_pad, 3))
+    return (
+        np.concatenate([d, pad], axis=1),
+        np.concatenate([f, np.zeros((n_tex, n_pad, f.shape[2]))], axis=1),
+        np.concatenate([w, np.full((n_tex, n_pad), pad_weight)], axis=1),
+    )
+
+
+# --------------------------------------------------------------------------
+# paper Fig. 3 on a capture's own samples
+# --------------------------------------------------------------------------
+FIT_OPTIONS = ("exp", "constant", "none", "zero_pad")
+"""The fits of paper Fig. 3: the two regularisers, none, and zero-padding the lower hemisphere."""
+
+
+def fit_option(option: str, directions: np.ndarray, values: np.ndarray, weights: np.ndarray, lmax: int,
+               lam: float = 1e-3, penalise_dc: bool = True) -> np.ndarray:
+    """`fit_sh` as one of `FIT_OPTIONS` (``zero_pad``: the unregularised fit of the samples
+    plus as many zeros on the lower hemisphere as there are samples)."""
+    check_choice(option, "option", FIT_OPTIONS)
+    if option == "zero_pad":
+        padded = zero_pad_lower_hemisphere(directions, values, weights, np.shape(weights)[1])
+        return fit_sh(*padded, lmax, "none")
+    return fit_sh(directions, values, weights, lmax, option, lam, penalise_dc=penalise_dc)
+
+
+def spectrum_log_ratio(fitted: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """``log(S_fit(l) / S_true(l))`` per texel, degree 1..lmax and channel: below 0 where a fit
+    damps a degree, above where it invents power.
+
+    Parameters
+    ----------
+    fitted, truth : numpy.ndarray
+        Shape ``(T, (lmax+1)^2, C)``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(T, lmax, C)``; NaN where either power is 0.
+    """
+    from .sh import power_spectrum
+
+    s_fit, s_true = power_spectrum(fitted)[:, 1:], power_spectrum(truth)[:, 1:]
+    ok = (s_fit > 0) & (s_true > 0)
+    return np.where(ok, np.log(np.where(ok, s_fit, 1.0) / np.where(ok, s_true, 1.0)), np.nan)
