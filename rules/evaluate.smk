@@ -35,6 +35,7 @@ rule metrics:
         references=[f"results/captures/{o}/{r}/test" for o, r in METRIC_REFERENCES],
         benchmarks=[f for o, e, p, m in METRIC_TIMINGS for f in method_benchmarks(o, e, p, m)],
         extraction=[f"results/benchmarks/extract_observations/{o}_{e}_{POSES}.tsv" for o, e in SYNTHETIC_CAPTURES],
+        views=[f"results/views/{o}/{e}/{POSES}/views.tsv" for o, e in VIEWS_CAPTURES],
         code=library("metrics"),
     output:
         "results/tables/metrics.csv",
@@ -48,6 +49,7 @@ rule metrics:
         references=METRIC_REFERENCES,
         timings=[(o, e, p, m, len(method_benchmarks(o, e, p, m))) for o, e, p, m in METRIC_TIMINGS],
         methods=METHODS,
+        views=[(o, e, POSES) for o, e in VIEWS_CAPTURES],
     threads: 1
     log:
         "results/logs/metrics.log",

@@ -272,7 +272,7 @@ def test_changing_relight_envs_renders_only_the_new_environments(repo, run, tmp_
     assert "results/relight/sphere/studio/gt/freq/studio" in plan.stdout
 
 
-TABLE_STEMS = ("table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "claims")
+TABLE_STEMS = ("table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "table6_merge", "claims")
 
 
 def test_tables_and_claims_follow_the_metrics(run):
@@ -290,9 +290,19 @@ def test_tables_and_claims_follow_the_metrics(run):
                    if line.startswith("| ") and f"({method}) | here |" in line)
         assert f"| {mse:.3f} (" in row  # the run's number, in its environment's column
     claims = [line.split(" | ") for line in (tables / "claims.md").read_text().splitlines()[4:] if line.startswith("| ")]
-    assert len(claims) == 9 and all(cells[3] in ("yes", "no", "not run") for cells in claims)
+    assert len(claims) == 11 and all(cells[3] in ("yes", "no", "not run") for cells in claims)
     page = (tables / "tables.html").read_text()
-    assert all(f"Table {n}:" in page for n in (1, 2, 4, 5)) and "<script" not in page
+    assert all(f"Table {n}:" in page for n in (1, 2, 4, 5, 6)) and "<script" not in page
+    # the views sweep of the tiny capture: 2 and all 4 views, freq's MSE and mean entropy for each
+    sweep = pd.read_csv(run / "results/views/sphere/studio/gt/views.tsv", sep="\t")
+    assert list(sweep.views) == [2, 4] and sweep.mean_entropy.between(0, 1).all()
+    full = metrics[(metrics.object == "sphere") & (metrics.method == "freq") & (metrics.metric == "mse_average")]
+    # with all views the sweep runs the pipeline's own freq on the same observations (light drawn again)
+    assert sweep.mse_average.iloc[-1] == pytest.approx(full.value.iloc[0], rel=0.05)
+    # the merges: one capture only, so each is its start method's estimate
+    for merged, start in (("mitsuba_merged", "mitsuba"), ("freq_merged", "freq")):
+        mse = metrics[(metrics.object == "sphere") & (metrics.metric == "mse_average")].set_index("method").value
+        assert mse[merged] == pytest.approx(mse[start], rel=1e-6)
 
 
 def test_report_figures_are_written_per_capture(run):

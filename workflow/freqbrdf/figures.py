@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .colour import to_srgb, tonemap
 from .metrics import parameter_error_map
 from .plots import pyplot, save_figure
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
 
 GREY = "0.85"  # outside the UV atlas (or not scored)
 
@@ -262,5 +266,29 @@ def regulariser_figure(path: str | os.PathLike, ratios: Mapping[str, np.ndarray]
     ax.set_xlabel("SH degree l")
     ax.set_ylabel("error of log(S_B / S_L)")
     ax.legend(fontsize=8, title="fit (median, quartiles over texels)", title_fontsize=7)
+    ax.set_title(title, fontsize=9)
+    save_figure(fig, path, dpi=100)
+
+
+def views_figure(path: str | os.PathLike, table: pd.DataFrame, title: str) -> None:
+    """Parameter MSE and mean entropy against the number of training views (paper Fig. 8).
+
+    Parameters
+    ----------
+    path : path-like
+        PNG destination.
+    table : DataFrame
+        Columns ``views``, ``mse_average``, ``mean_entropy``, one row per count.
+    title : str
+        Figure title.
+    """
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(5.5, 3.4), layout="constrained")
+    ax.plot(table["views"], table["mse_average"], marker="o", color="tab:blue", label="parameter MSE")
+    ax.set_xlabel("training views")
+    ax.set_ylabel("parameter MSE (freq)", color="tab:blue")
+    twin = ax.twinx()
+    twin.plot(table["views"], table["mean_entropy"], marker="s", color="tab:red", label="mean entropy")
+    twin.set_ylabel("mean entropy", color="tab:red")
     ax.set_title(title, fontsize=9)
     save_figure(fig, path, dpi=100)

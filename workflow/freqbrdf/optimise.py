@@ -81,7 +81,7 @@ from scipy import sparse
 
 from .artefacts import Observations
 from .brdf import R0_DIELECTRIC, TEXTURES, alpha_from_roughness, smith_g1, tan2_theta
-from .light import LightQuadrature, shadowed_light
+from .light import LightQuadrature, irradiance, light_quadrature, shadowed_light
 from .methods import get_method
 from .sh import real_sh
 from .shfit import mirror_directions
@@ -90,6 +90,7 @@ from .validation import check_finite, check_int, check_shape
 __all__ = [
     "PARAM_COLUMNS",
     "OptimiseSettings",
+    "estimate_light",
     "Problem",
     "identifiable_roughness",
     "atlas_neighbours",
@@ -203,6 +204,23 @@ class OptimiseSettings:
             raise ValueError(f"min_roughness must be in [0, 1), got {self.min_roughness!r}")
         if self.dtype not in _DTYPES:
             raise ValueError(f"dtype must be one of {_DTYPES}, got {self.dtype!r}")
+
+    @classmethod
+    def from_config(cls, config: Mapping[str, object], workers: int = 1) -> OptimiseSettings:
+        """Settings from config ``optimise`` (``min_roughness: auto`` is `identifiable_roughness`
+        of ``lmax``; ``init: grid`` starts from the grid)."""
+        bound = config["min_roughness"]
+        return cls(iterations=config["iterations"], lr=config["lr"], refit_every=config["refit_every"],
+                   tv_weight=config["tv_weight"], workers=workers, grid_start=config["init"] == "grid",
+                   min_roughness=identifiable_roughness(config["lmax"]) if bound == "auto" else float(bound))
+
+
+def estimate_light(envmap: np.ndarray, obs: Observations, method: str, lmax: int) -> tuple[LightQuadrature, np.ndarray]:
+    """The light of a method's model at degree ``lmax`` and the irradiance at the texel normals:
+    the map as it is, or low-passed by the views' band limit a' for a ``prefiltered`` method
+    (``freq_paper``: paper section 4.2)."""
+    prefilter = obs.a_prime if get_method(method).prefiltered else 0.0
+    return light_quadrature(envmap, lmax, prefilter=prefilter), irradiance(envmap, obs.texels.normal)
 
 
 # --------------------------------------------------------------------------

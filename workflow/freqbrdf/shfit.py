@@ -39,10 +39,12 @@ at lmax 6: 24 vs 49).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .artefacts import Observations, ShFit
 from .sh import fibonacci_hemisphere, n_coeffs, real_sh, sh_degrees
 from .validation import check_choice, check_int, check_positive, check_shape
 
@@ -390,3 +392,31 @@ def spectrum_log_ratio(fitted: np.ndarray, truth: np.ndarray) -> np.ndarray:
     s_fit, s_true = power_spectrum(fitted)[:, 1:], power_spectrum(truth)[:, 1:]
     ok = (s_fit > 0) & (s_true > 0)
     return np.where(ok, np.log(np.where(ok, s_fit, 1.0) / np.where(ok, s_true, 1.0)), np.nan)
+
+
+def fit_observations(obs: Observations, settings: Mapping[str, object], workers: int = 1) -> ShFit:
+    """SH fits of a capture's B and L per texel with config ``sh`` settings (rule fit_sh).
+
+    B, L and a channel of ones share directions and weights, so one fit serves all three;
+    the ones give the DC the fit assigns to a constant (:func:`freqbrdf.spectrum.diffuse_albedo`).
+
+    Parameters
+    ----------
+    obs : Observations
+        T texels x K views.
+    settings : mapping
+        ``lmax``, ``regulariser``, ``lambda``, ``penalise_dc`` (config ``sh``).
+    workers : int
+        Threads.
+    """
+    from .sh import power_spectrum
+
+    n_tex, n_views = obs.weight.shape
+    values = np.concatenate([obs.radiance, obs.incoming, np.ones((n_tex, n_views, 1), np.float32)], axis=-1)
+    coeffs = fit_sh(mirror_directions(np.asarray(obs.wo_local)), values, np.asarray(obs.weight), settings["lmax"],
+                    regulariser=settings["regulariser"], lam=settings["lambda"],
+                    penalise_dc=settings["penalise_dc"], workers=workers)
+    return ShFit(coeffs_outgoing=coeffs[..., 0:3], coeffs_incoming=coeffs[..., 3:6], unit_dc=coeffs[:, 0, 6],
+                 spectra_outgoing=power_spectrum(coeffs[..., 0:3]), spectra_incoming=power_spectrum(coeffs[..., 3:6]),
+                 meta={"settings": dict(settings), "texels": n_tex, "observed_texels": int(obs.observed.sum()),
+                       "a_prime": obs.a_prime})

@@ -35,11 +35,14 @@ exactly 1.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from .artefacts import ShFit
 from .colour import LUMINANCE
 from .validation import check_choice, check_int, check_positive, check_shape
 
@@ -565,3 +568,18 @@ def diffuse_albedo(
     denom = u * e / np.pi
     ok = np.isfinite(denom) & (denom > 0)
     return np.where(ok, (b - k * lc) / np.where(ok, denom, 1.0), 0.0)
+
+
+def search_fit(fit: ShFit, observed: np.ndarray, settings: Mapping[str, object], workers: int = 1) -> SpectrumSearch:
+    """`spectrum_search` of an SH fit with config ``spectrum`` settings (rule spectrum_search).
+
+    The grid's alpha starts at the views' band limit a'. ``S_L`` is of the light pre-filtered
+    by a' and ``S_B`` is not, so the grid's lobes act on ``S_L`` with the width that remains
+    once a' is accounted for (`residual_width`); the returned ``alpha`` is the lobe's own.
+    """
+    ks_values, alpha_values = default_grid(settings["n_ks"], settings["n_alpha"], alpha_min=fit.a_prime)
+    search = spectrum_search(fit.spectra_outgoing, fit.spectra_incoming, ks_values,
+                             residual_width(alpha_values, fit.a_prime), sigma=settings["sigma"],
+                             combine=settings["combine"], observed=observed, workers=workers,
+                             normalise=settings["normalise"])
+    return dataclasses.replace(search, alpha=np.sqrt(search.alpha**2 + fit.a_prime**2))

@@ -857,9 +857,40 @@ def _merge_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
     )
 
 
+def views_sweep(df: pd.DataFrame) -> pd.DataFrame:
+    """The views sweep's rows as a table: ``object, env, views, mse_average, mean_entropy``."""
+    rows = df[df.metric.str.fullmatch(r"views_\d+_(mse_average|mean_entropy)")]
+    if rows.empty:
+        return pd.DataFrame(columns=["object", "env", "views", "mse_average", "mean_entropy"])
+    parts = rows.metric.str.extract(r"views_(\d+)_(\w+)")
+    wide = rows.assign(views=parts[0].astype(int), quantity=parts[1]).pivot_table(
+        index=["object", "env", "views"], columns="quantity", values="value").reset_index()
+    return wide.sort_values(["object", "env", "views"])
+
+
+def _views_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    sweep = views_sweep(df)
+    if len(sweep):  # the first capture swept (the pipeline sweeps one)
+        sweep = sweep[(sweep.object == sweep.object.iloc[0]) & (sweep.env == sweep.env.iloc[0])]
+    known = len(sweep) >= 2
+    fewest, most = (sweep.iloc[0], sweep.iloc[-1]) if known else (None, None)
+    r = float(sweep.mse_average.corr(sweep.mean_entropy)) if len(sweep) >= 3 else float("nan")
+    return Claim(
+        "With fewer views, error and entropy rise together",
+        "MSE and mean entropy both rise as views are dropped (Fig. 8)",
+        (f"{int(fewest.views)} views: MSE {fmt(fewest.mse_average)}, entropy {fmt(fewest.mean_entropy, 2)}; "
+         f"{int(most.views)}: {fmt(most.mse_average)}, {fmt(most.mean_entropy, 2)}; Pearson {fmt(r, 2)}")
+        if known else MISSING,
+        _verdict(bool(fewest.mse_average > most.mse_average and fewest.mean_entropy > most.mean_entropy
+                      and not r < 0) if known else None),
+        "fewest views: MSE and mean entropy above those of the most views, and their Pearson correlation "
+        "over the counts not negative (freq, first capture)",
+    )
+
+
 _CLAIMS: tuple[Callable[[pd.DataFrame, PaperResults], Claim], ...] = (
     _speed_claim, _speed_order_claim, _accuracy_claim, _relight_claim, _spectrum_claim,
-    _ablation_claim, _finetune_claim, _finetune_time_claim, _entropy_claim, _merge_claim,
+    _ablation_claim, _finetune_claim, _finetune_time_claim, _entropy_claim, _merge_claim, _views_claim,
 )
 
 

@@ -146,9 +146,20 @@ def equal_accuracy_rows(smk, rows, log):
     return out
 
 
+def views_rows(smk):
+    """views_<k>_mse_average and views_<k>_mean_entropy of freq on the views-sweep capture, per count k."""
+    rows = []
+    for (obj, env, poses), table in keyed(smk.params.views, smk.input.views).items():
+        key = dict(object=obj, env=env, poses=poses, method="freq", relight_env="")
+        for r in pd.read_csv(table, sep="\t").itertuples():
+            rows += [key | dict(metric=f"views_{r.views}_mse_average", value=r.mse_average),
+                     key | dict(metric=f"views_{r.views}_mean_entropy", value=r.mean_entropy)]
+    return rows
+
+
 def main(smk, log):
     rows = parameter_rows(smk) + relight_rows(smk, log) + timing_rows(smk)
-    rows += equal_accuracy_rows(smk, rows, log)
+    rows += equal_accuracy_rows(smk, rows, log) + views_rows(smk)
     table = pd.DataFrame(rows, columns=COLUMNS)
     with atomic_path(smk.output[0]) as tmp:
         table.to_csv(tmp, index=False, float_format="%.6g")

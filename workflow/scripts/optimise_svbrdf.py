@@ -8,10 +8,9 @@ import pandas as pd
 
 from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf, write_svbrdf
 from freqbrdf.io import atomic_directory, atomic_path, read_exr
-from freqbrdf.light import irradiance, light_quadrature
 from freqbrdf.logs import run_script
 from freqbrdf.methods import get_method
-from freqbrdf.optimise import OptimiseSettings, identifiable_roughness, optimise
+from freqbrdf.optimise import OptimiseSettings, estimate_light, optimise
 from freqbrdf.plots import loss_figure
 
 
@@ -21,18 +20,14 @@ def main(smk, log):
     envmap = read_exr(smk.input.envmap)
     init = read_svbrdf(smk.input.init).at_texels(texels.texel) if "init" in smk.input.keys() else None
     opt = smk.params.optimise
-    min_roughness = identifiable_roughness(opt["lmax"]) if opt["min_roughness"] == "auto" else opt["min_roughness"]
-    log.info("roughness bounded below by %.3f (optimise.min_roughness: %s)", min_roughness, opt["min_roughness"])
-    settings = OptimiseSettings(iterations=opt["iterations"], lr=opt["lr"], refit_every=opt["refit_every"],
-                                tv_weight=opt["tv_weight"], min_roughness=min_roughness,
-                                grid_start=opt["init"] == "grid", workers=smk.threads)
+    settings = OptimiseSettings.from_config(opt, workers=smk.threads)
+    log.info("roughness bounded below by %.3f (optimise.min_roughness: %s)", settings.min_roughness,
+             opt["min_roughness"])
     start = time.perf_counter()
-    # freq_paper: the light low-passed by the views' band limit a' (paper section 4.2)
-    prefilter = obs.a_prime if get_method(smk.wildcards.method).prefiltered else 0.0
-    light = light_quadrature(envmap, opt["lmax"], prefilter=prefilter)
-    e = irradiance(envmap, texels.normal)
-    log.info("light at degree %d (pre-filter a' = %.3f) from %d quadrature nodes, irradiance at %d normals in %.1f s",
-             opt["lmax"], prefilter, len(light.directions), len(texels), time.perf_counter() - start)
+    light, e = estimate_light(envmap, obs, smk.wildcards.method, opt["lmax"])
+    log.info("light at degree %d (pre-filter %s) from %d quadrature nodes, irradiance at %d normals in %.1f s",
+             opt["lmax"], "a' = %.3f" % obs.a_prime if get_method(smk.wildcards.method).prefiltered else "none",
+             len(light.directions), len(texels), time.perf_counter() - start)
     params, curve = optimise(obs, e, light, init=init, method=smk.wildcards.method, settings=settings)
     log.info("%s: %d iterations in %.1f s, loss %.4g -> %.4g", smk.wildcards.method, len(curve),
              time.perf_counter() - start, curve[0], curve[-1])

@@ -11,7 +11,7 @@ from freqbrdf.io import atomic_directory, read_exr
 from freqbrdf.light import irradiance
 from freqbrdf.logs import run_script
 from freqbrdf.plots import entropy_figure, texel_spectra_figure
-from freqbrdf.spectrum import default_grid, diffuse_albedo, residual_width, spectrum_search
+from freqbrdf.spectrum import diffuse_albedo, residual_width, search_fit
 
 
 def main(smk, log):
@@ -19,22 +19,16 @@ def main(smk, log):
     fit, obs = read_sh_fit(smk.input.sh), read_observations(smk.input.observations)
     texels, observed = obs.texels, obs.observed
     s_b, s_l = fit.spectra_outgoing, fit.spectra_incoming
-    ks_values, alpha_values = default_grid(settings["n_ks"], settings["n_alpha"], alpha_min=fit.a_prime)
     start = time.perf_counter()
-    # S_L is of the light pre-filtered by a' (the views' band limit) and S_B is not: the
-    # grid's lobes act on S_L with the width that remains once a' is accounted for.
-    search = spectrum_search(s_b, s_l, ks_values, residual_width(alpha_values, fit.a_prime),
-                             sigma=settings["sigma"], combine=settings["combine"], observed=observed,
-                             workers=smk.threads, normalise=settings["normalise"])
-    log.info("grid search %dx%d over %d texels in %.2f s", len(ks_values), len(alpha_values), len(observed),
+    search = search_fit(fit, observed, settings, workers=smk.threads)
+    log.info("grid search %dx%d over %d texels in %.2f s", settings["n_ks"], settings["n_alpha"], len(observed),
              time.perf_counter() - start)
 
     # Diffuse albedo from degree 0, with the irradiance of the whole environment at each normal.
     ks = search.ks @ LUMINANCE
     kd = diffuse_albedo(fit.coeffs_outgoing[:, 0], fit.coeffs_incoming[:, 0], ks,
                         irradiance(read_exr(smk.input.envmap), texels.normal), unit_dc=fit.unit_dc)
-    alpha = np.sqrt(search.alpha**2 + fit.a_prime**2)  # back from the residual width
-    base, roughness, metallic = principled_from_lobes(np.clip(kd, 0.0, 1.0), ks, alpha)
+    base, roughness, metallic = principled_from_lobes(np.clip(kd, 0.0, 1.0), ks, search.alpha)
 
     known = observed & ~search.unobserved
     with atomic_directory(smk.output.estimate) as tmp:
@@ -47,17 +41,18 @@ def main(smk, log):
         entropy = write_entropy(tmp, texels, search.entropy, search.unobserved)
         title = f"{smk.wildcards.object} / {smk.wildcards.env}: entropy (grey: outside the atlas)"
         entropy_figure(tmp / "entropy.png", entropy.atlas, inside.reshape(r, r), title)
-        texel_spectra_figure(tmp / "texel_spectra.png", _examples(s_b, s_l, search, known))
+        texel_spectra_figure(tmp / "texel_spectra.png", _examples(s_b, s_l, search, known, fit.a_prime))
     log.info("entropy: mean %.3f over observed texels, %d texels unobserved (entropy 1)",
              search.entropy[known].mean(), int(search.unobserved.sum()))
 
 
-def _examples(s_b, s_l, search, known):
-    """The most certain, a median and the least certain observed texel."""
+def _examples(s_b, s_l, search, known, a_prime):
+    """The most certain, a median and the least certain observed texel, with the width of the lobe
+    as it acts on the pre-filtered light (what the figure's model curve applies to S_L)."""
     order = np.nonzero(known)[0][np.argsort(search.entropy[known])]
     picks = {"lowest entropy": order[0], "median": order[len(order) // 2], "highest entropy": order[-1]}
     return {label: {"s_b": s_b[t] @ LUMINANCE, "s_l": s_l[t] @ LUMINANCE, "ks": float(search.ks[t] @ LUMINANCE),
-                    "alpha": float(search.alpha[t]), "entropy": float(search.entropy[t])} for label, t in picks.items()}
+                    "alpha": float(residual_width(search.alpha[t], a_prime)), "entropy": float(search.entropy[t])} for label, t in picks.items()}
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)

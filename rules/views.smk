@@ -1,0 +1,33 @@
+# Parameter MSE and entropy with fewer training views (paper Fig. 8), on the first
+# synthetic capture (config evaluate.views_counts; none when the list is empty).
+VIEWS_CAPTURES = SYNTHETIC_CAPTURES[:1] if config["evaluate"]["views_counts"] else []
+
+
+rule views_sweep:
+    """freq's parameter MSE and the mean spectrum entropy of one capture restricted to seeded
+    random subsets of its training views, each with the band limit of its own count."""
+    input:
+        observations="results/observations/{object}/{env}/{poses}",
+        envmap=envmap_file,
+        truth=lambda w: [object_files(w.object)[n] for n in TEXTURES],
+        code=library("views_sweep"),
+    output:
+        table="results/views/{object}/{env}/{poses}/views.tsv",
+        figure=report("results/views/{object}/{env}/{poses}/views.png", category="Uncertainty",
+                      caption="../report/views.rst", labels={"capture": "{object} / {env}", "figure": "views"}),
+    params:
+        counts=config["evaluate"]["views_counts"],
+        seed=lambda w: derived_seed(config["seed"], "views", w.object, w.env, w.poses),
+        band_limit=config["observations"]["band_limit"],
+        sh=config["sh"],
+        spectrum=config["spectrum"],
+        optimise=config["optimise"],
+    threads: 2
+    log:
+        "results/logs/views_sweep/{object}_{env}_{poses}.log",
+    benchmark:
+        "results/benchmarks/views_sweep/{object}_{env}_{poses}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/views_sweep.py"

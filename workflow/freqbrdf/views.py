@@ -1,0 +1,71 @@
+"""Fewer views, higher error and entropy: the views sweep of paper Fig. 8 (rule views_sweep).
+
+Wiersma et al. 2024, section 5.4 and Fig. 8: the paper drops views from its
+synthetic captures and finds parameter MSE and mean entropy rising together,
+so the entropy, computed without ground truth, tracks how well a capture
+constrains the material. Here a capture's observations are restricted to
+seeded random subsets of its training views; each subset gets the band limit
+a' of its own count (the incoming light is drawn again from the map) and runs
+through the same SH fit, spectrum search and ``freq`` estimator as the pipeline.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .artefacts import Observations
+from .observations import band_limit_parameter, band_limited_envmap, sample_equirect
+from .shfit import mirror_directions
+from .validation import check_int
+
+__all__ = ["view_subsets", "view_subset"]
+
+
+def view_subsets(n_views: int, counts: Sequence[int], seed: int) -> dict[int, np.ndarray]:
+    """A seeded random subset of ``range(n_views)`` for each count (sorted view indices;
+    counts at or above ``n_views`` all mean every view, keyed ``n_views``).
+
+    Raises
+    ------
+    ValueError
+        Naming a count below 1.
+    """
+    n_views = check_int(n_views, "n_views", 1)
+    rng = np.random.default_rng(seed)
+    out = {}
+    for count in sorted({min(check_int(c, "views count", 1), n_views) for c in counts}):
+        out[count] = np.arange(n_views) if count == n_views else np.sort(rng.choice(n_views, count, replace=False))
+    return out
+
+
+def view_subset(obs: Observations, views: np.ndarray, envmap: np.ndarray, band_limit: str) -> Observations:
+    """The observations of the views ``views`` only, as extraction would give them.
+
+    Parameters
+    ----------
+    obs : Observations
+        T texels x K views.
+    views : ndarray, shape (k,)
+        Indices of the views kept, in order.
+    envmap : ndarray, shape (H, W, 3)
+        The capture's environment map.
+    band_limit : {"paper", "reference"}
+        Rule of the band limit a' of k views (:func:`freqbrdf.observations.band_limit_parameter`).
+
+    Returns
+    -------
+    Observations
+        Radiance, weights and directions of the kept views, and the incoming light along
+        their mirror directions from the map low-passed at the a' of k views.
+    """
+    views = np.asarray(views, dtype=np.int64)
+    a_prime = band_limit_parameter(len(views), band_limit)
+    wo = np.asarray(obs.wo_local[:, views])
+    world = np.einsum("tji,tkj->tki", obs.frame, mirror_directions(wo))  # local -> world mirror directions
+    incoming = sample_equirect(band_limited_envmap(envmap, a_prime), world).astype(np.float32)
+    names = [obs.meta["views"][v] for v in views]
+    meta = {**obs.meta, "views": names, "band_limit": {"rule": band_limit, "a_prime": a_prime}}
+    return Observations(obs.texels, np.asarray(obs.radiance[:, views]), np.asarray(obs.weight[:, views]), wo,
+                        incoming, meta)

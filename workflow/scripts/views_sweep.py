@@ -1,0 +1,53 @@
+"""Rule views_sweep: freq's parameter MSE and the mean entropy of one capture with seeded
+random subsets of its training views (paper Fig. 8)."""
+
+import time
+
+import numpy as np
+import pandas as pd
+
+from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf
+from freqbrdf.brdf import TEXTURES
+from freqbrdf.figures import views_figure
+from freqbrdf.io import atomic_path, read_exr
+from freqbrdf.logs import run_script
+from freqbrdf.metrics import parameter_mse
+from freqbrdf.optimise import OptimiseSettings, estimate_light, optimise
+from freqbrdf.shfit import fit_observations
+from freqbrdf.spectrum import search_fit
+from freqbrdf.views import view_subset, view_subsets
+
+
+def main(smk, log):
+    obs = read_observations(smk.input.observations)
+    envmap = read_exr(smk.input.envmap)
+    truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth)))
+    p = smk.params
+    settings = OptimiseSettings.from_config(p.optimise, workers=smk.threads)
+    light, e = estimate_light(envmap, obs, "freq", p.optimise["lmax"])
+    rows = []
+    for count, views in view_subsets(len(obs.meta["views"]), p.counts, p.seed).items():
+        start = time.perf_counter()
+        sub = view_subset(obs, views, envmap, p.band_limit)
+        search = search_fit(fit_observations(sub, p.sh, smk.threads), sub.observed, p.spectrum, smk.threads)
+        estimate, _ = optimise(sub, e, light, method="freq", settings=settings)
+        texels = sub.texels
+        scored = texels.texel[sub.observed]
+        mse = parameter_mse(truth, Svbrdf.from_texels(texels.resolution, texels.texel, estimate, sub.observed), scored)
+        known = sub.observed & ~search.unobserved
+        rows.append({"views": len(views), "observed_texels": int(sub.observed.sum()),
+                     "mean_entropy": float(search.entropy[known].mean()),
+                     **{f"mse_{k}": v for k, v in mse.items()}, "seconds": time.perf_counter() - start})
+        log.info("%d views: %d texels observed, MSE %.4f, mean entropy %.3f (%.1f s)", len(views),
+                 rows[-1]["observed_texels"], mse["average"], rows[-1]["mean_entropy"], rows[-1]["seconds"])
+    table = pd.DataFrame(rows)
+    with atomic_path(smk.output.table) as f:
+        table.to_csv(f, sep="\t", index=False, float_format="%.6g")
+    w = smk.wildcards
+    views_figure(smk.output.figure, table, f"{w.object} / {w.env}: freq with fewer training views")
+    if len(table) > 1:
+        log.info("Pearson correlation of MSE and mean entropy over %d counts: %.2f", len(table),
+                 np.corrcoef(table.mse_average, table.mean_entropy)[0, 1])
+
+
+run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
