@@ -521,5 +521,5 @@ def test_partial_refit_matches_a_full_fit_of_the_moved_texels(small: dict) -> No
     moved = np.array([1, 5, 6, 11])
     r2[problem.observed[moved]] += 0.05
     flat = terms(small, problem, r1, True)
-    op._refit_light(flat, r2, problem, small["light"], moved, workers=1)
+    op.refit_light(flat, r2, problem, small["light"], moved, workers=1)
     np.testing.assert_allclose(flat, terms(small, problem, r2, True), rtol=1e-5, atol=1e-6)

@@ -167,7 +167,7 @@ def test_colmap_defaults_are_pycolmaps_own():
 
 
 # Where each option COLMAP takes unchanged must land ("{pycolmap class}.{attribute path}"),
-# written out here independently of sfm._COLMAP_ATTRIBUTES, with a value other
+# written out here independently of sfm.COLMAP_ATTRIBUTES, with a value other
 # than the tuned default (numbers all distinct, so a swap shows; dyadic, so a
 # float32 attribute would hold them exactly).
 MAPPED = {
@@ -200,8 +200,8 @@ MAPPED = {
 
 def colmap_settings(options: sfm.SfmOptions) -> dict:
     """Every attribute of the pycolmap option objects built from ``options``, "{class}.{path}" -> value."""
-    matching, verification = sfm._matching_options(options)
-    objects = [sfm._extraction_options(options), matching, verification, sfm._mapping_options(options, Path("images"))]
+    matching, verification = sfm.matching_options(options)
+    objects = [sfm.extraction_options(options), matching, verification, sfm.mapping_options(options, Path("images"))]
     settings = {}
 
     def walk(prefix: str, values: dict) -> None:
@@ -236,7 +236,7 @@ def pycolmap_default(path: str):
 
 def test_every_option_field_reaches_colmap_or_is_set_explicitly():
     names = [f.name for f in dataclasses.fields(sfm.SfmOptions)]
-    mapped, explicit = set(sfm._COLMAP_ATTRIBUTES), set(sfm._SET_EXPLICITLY)
+    mapped, explicit = set(sfm.COLMAP_ATTRIBUTES), set(sfm.SET_EXPLICITLY)
     assert mapped.isdisjoint(explicit) and sorted(mapped | explicit) == sorted(names)
     assert set(MAPPED) == mapped  # this file's own list covers every mapped field
     numbers = [value for value, _ in MAPPED.values() if not isinstance(value, bool)]
@@ -272,12 +272,12 @@ def test_options_set_explicitly_reach_colmap():
 
 
 def test_a_pycolmap_attribute_that_is_missing_is_named_with_its_field(monkeypatch):
-    monkeypatch.setitem(sfm._COLMAP_ATTRIBUTES, "peak_threshold", "FeatureExtractionOptions.sift.peak_treshold")
+    monkeypatch.setitem(sfm.COLMAP_ATTRIBUTES, "peak_threshold", "FeatureExtractionOptions.sift.peak_treshold")
     named = r"poses\.colmap\.peak_threshold maps onto pycolmap\.FeatureExtractionOptions\.sift\.peak_treshold"
     with pytest.raises(AttributeError, match=named):
-        sfm._extraction_options(sfm.SfmOptions())
+        sfm.extraction_options(sfm.SfmOptions())
     monkeypatch.undo()
-    monkeypatch.setitem(sfm._COLMAP_ATTRIBUTES, "max_reg_trials", "IncrementalPipelineOptions.mappr.max_reg_trials")
+    monkeypatch.setitem(sfm.COLMAP_ATTRIBUTES, "max_reg_trials", "IncrementalPipelineOptions.mappr.max_reg_trials")
     named = r"poses\.colmap\.max_reg_trials .* no attribute 'mappr' on IncrementalPipelineOptions"
     with pytest.raises(AttributeError, match=named):
         sfm.SfmOptions.colmap_defaults()

@@ -99,6 +99,7 @@ __all__ = [
     "unpack_params",
     "mirror_basis",
     "light_terms",
+    "refit_light",
     "forward",
     "total_variation",
     "loss_and_gradient",
@@ -694,14 +695,14 @@ def light_terms(
     workers = check_int(workers, "workers", 1)
     out = np.empty((problem.n_pairs, light.lmax + 1, 3), dtype=problem.dtype)
     if shadowing:
-        _refit_light(out, r, problem, light, np.arange(problem.n_observed), workers, basis)
+        refit_light(out, r, problem, light, np.arange(problem.n_observed), workers, basis)
     else:
         lg = (light.basis.T.astype(np.float64) @ light.weighted_radiance)[None]  # (1, n, 3)
         _evaluate_light(out, np.arange(problem.n_pairs), None, lg, problem, workers, basis)
     return out
 
 
-def _refit_light(
+def refit_light(
     out: np.ndarray, roughness: np.ndarray, problem: Problem, light: LightQuadrature, slots: np.ndarray,
     workers: int, basis: np.ndarray | None = None,
 ) -> None:
@@ -1237,7 +1238,7 @@ def _descend(
                     now = roughness[problem.observed]
                     slots = np.nonzero(np.abs(now - fitted) > settings.refit_tolerance)[0]
                     if slots.size:
-                        _refit_light(flat, roughness, problem, light, slots, settings.workers, basis)
+                        refit_light(flat, roughness, problem, light, slots, settings.workers, basis)
                         fitted[slots] = now[slots]
                 padded = _pad_light(flat, problem)
             curve[it], grad = _loss_and_gradient(xp, problem, padded, masking, settings.tv_weight, pool)

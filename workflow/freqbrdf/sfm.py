@@ -254,9 +254,9 @@ class SfmOptions:
         """
         import pycolmap
 
-        defaults = {owner: _new_colmap_object(owner) for owner in {_owner(name) for name in _COLMAP_ATTRIBUTES}}
+        defaults = {owner: _new_colmap_object(owner) for owner in {_owner(name) for name in COLMAP_ATTRIBUTES}}
         copied = {}
-        for name in _COLMAP_ATTRIBUTES:
+        for name in COLMAP_ATTRIBUTES:
             holder, attribute = _attribute(defaults[_owner(name)], name)
             copied[name] = getattr(holder, attribute)
         return cls(
@@ -268,7 +268,7 @@ class SfmOptions:
 
 # Each SfmOptions field that COLMAP takes unchanged -> where it lands,
 # "{pycolmap option class}.{attribute path}"; _colmap_object copies them.
-_COLMAP_ATTRIBUTES: dict[str, str] = {
+COLMAP_ATTRIBUTES: dict[str, str] = {
     "max_num_features": "FeatureExtractionOptions.sift.max_num_features",
     "first_octave": "FeatureExtractionOptions.sift.first_octave",
     "num_octaves": "FeatureExtractionOptions.sift.num_octaves",
@@ -296,7 +296,7 @@ _COLMAP_ATTRIBUTES: dict[str, str] = {
 }
 
 # The other SfmOptions fields, which are no one-to-one copy onto a pycolmap option.
-_SET_EXPLICITLY = (
+SET_EXPLICITLY = (
     "use_mask", "mask_erosion_px", "exposure", "denoise_sigma",  # our own preprocessing (sfm_images), not COLMAP's
     "known_intrinsics", "camera_model",  # pick the reader's camera and which intrinsics bundle adjustment refines
     "seed",  # also seeds COLMAP's global PRNG, and goes to two option objects
@@ -433,8 +433,8 @@ def _camera_params(K: np.ndarray) -> str:
 
 
 def _owner(name: str) -> str:
-    """Name of the pycolmap option class that :data:`_COLMAP_ATTRIBUTES` puts field ``name`` on."""
-    return _COLMAP_ATTRIBUTES[name].partition(".")[0]
+    """Name of the pycolmap option class that :data:`COLMAP_ATTRIBUTES` puts field ``name`` on."""
+    return COLMAP_ATTRIBUTES[name].partition(".")[0]
 
 
 def _new_colmap_object(owner: str) -> object:
@@ -442,7 +442,7 @@ def _new_colmap_object(owner: str) -> object:
     import pycolmap
 
     if not hasattr(pycolmap, owner):
-        raise AttributeError(f"pycolmap {pycolmap.__version__} has no option class {owner} (see sfm._COLMAP_ATTRIBUTES)")
+        raise AttributeError(f"pycolmap {pycolmap.__version__} has no option class {owner} (see sfm.COLMAP_ATTRIBUTES)")
     return getattr(pycolmap, owner)()
 
 
@@ -456,13 +456,13 @@ def _attribute(target: object, name: str) -> tuple[object, str]:
     """
     import pycolmap
 
-    path = _COLMAP_ATTRIBUTES[name]
+    path = COLMAP_ATTRIBUTES[name]
     parent, *steps = path.split(".")
     for depth, step in enumerate(steps):
         if not hasattr(target, step):
             raise AttributeError(
                 f"{CONFIG_PREFIX}{name} maps onto pycolmap.{path}, but pycolmap {pycolmap.__version__} "
-                f"has no attribute {step!r} on {parent} (see sfm._COLMAP_ATTRIBUTES)"
+                f"has no attribute {step!r} on {parent} (see sfm.COLMAP_ATTRIBUTES)"
             )
         if depth < len(steps) - 1:
             target, parent = getattr(target, step), f"{parent}.{step}"
@@ -470,21 +470,21 @@ def _attribute(target: object, name: str) -> tuple[object, str]:
 
 
 def _colmap_object(owner: str, options: SfmOptions) -> object:
-    """A new ``pycolmap.{owner}`` option object carrying every field that :data:`_COLMAP_ATTRIBUTES` puts on it."""
+    """A new ``pycolmap.{owner}`` option object carrying every field that :data:`COLMAP_ATTRIBUTES` puts on it."""
     target = _new_colmap_object(owner)
-    for name in _COLMAP_ATTRIBUTES:
+    for name in COLMAP_ATTRIBUTES:
         if _owner(name) == owner:
             holder, attribute = _attribute(target, name)
             value = getattr(options, name)
             try:
                 setattr(holder, attribute, value)
             except TypeError as error:  # pybind11's own message names neither the field nor the attribute
-                path = _COLMAP_ATTRIBUTES[name]
+                path = COLMAP_ATTRIBUTES[name]
                 raise TypeError(f"{CONFIG_PREFIX}{name}: pycolmap.{path} does not take {value!r}") from error
     return target
 
 
-def _extraction_options(options: SfmOptions) -> pycolmap.FeatureExtractionOptions:
+def extraction_options(options: SfmOptions) -> pycolmap.FeatureExtractionOptions:
     """SIFT extraction options of ``options`` (CPU)."""
     extraction = _colmap_object("FeatureExtractionOptions", options)
     # Not SfmOptions fields: COLMAP runs on the CPU, on the views at their full size.
@@ -494,7 +494,7 @@ def _extraction_options(options: SfmOptions) -> pycolmap.FeatureExtractionOption
     return extraction
 
 
-def _matching_options(options: SfmOptions) -> tuple[pycolmap.FeatureMatchingOptions, pycolmap.TwoViewGeometryOptions]:
+def matching_options(options: SfmOptions) -> tuple[pycolmap.FeatureMatchingOptions, pycolmap.TwoViewGeometryOptions]:
     """Exhaustive matching and two-view verification options of ``options`` (CPU)."""
     matching = _colmap_object("FeatureMatchingOptions", options)
     matching.use_gpu = False
@@ -506,7 +506,7 @@ def _matching_options(options: SfmOptions) -> tuple[pycolmap.FeatureMatchingOpti
     return matching, verification
 
 
-def _mapping_options(options: SfmOptions, image_path: Path) -> pycolmap.IncrementalPipelineOptions:
+def mapping_options(options: SfmOptions, image_path: Path) -> pycolmap.IncrementalPipelineOptions:
     """Incremental mapping options of ``options`` for the views in ``image_path``."""
     mapping = _colmap_object("IncrementalPipelineOptions", options)
     mapping.num_threads = options.num_threads
@@ -654,7 +654,7 @@ def _extract_features(
         pycolmap.import_images(paths.database, paths.images, camera_mode=camera_mode, image_names=names, options=reader)
         pycolmap.extract_features(
             paths.database, paths.images, image_names=names, camera_mode=camera_mode,
-            reader_options=reader, extraction_options=_extraction_options(options), device=pycolmap.Device.cpu,
+            reader_options=reader, extraction_options=extraction_options(options), device=pycolmap.Device.cpu,
         )
     # The reader gives all views of one import the same camera_params, so
     # differing reference intrinsics are written into the database afterwards.
@@ -668,7 +668,7 @@ def _match_features(paths: _WorkPaths, options: SfmOptions, log: logging.Logger)
     import pycolmap
 
     t = time.perf_counter()
-    matching, verification = _matching_options(options)
+    matching, verification = matching_options(options)
     with _output_to_file(paths.colmap_log):
         pycolmap.match_exhaustive(
             paths.database, matching_options=matching, verification_options=verification, device=pycolmap.Device.cpu
@@ -684,7 +684,7 @@ def _map_views(
 
     t = time.perf_counter()
     with _output_to_file(paths.colmap_log):
-        models = pycolmap.incremental_mapping(paths.database, paths.images, paths.sparse, _mapping_options(options, paths.images))
+        models = pycolmap.incremental_mapping(paths.database, paths.images, paths.sparse, mapping_options(options, paths.images))
     if not models:
         raise TooFewRegisteredError(
             f"COLMAP registered 0 of {n_views} views of {capture_dir}: no model (see {paths.colmap_log}); {_advice()}"
