@@ -22,17 +22,20 @@ CAPTURES = SYNTHETIC_CAPTURES + [
 ]
 
 
-def relight_envs(env):
-    """Environments a synthetic capture's estimates are relit under (config evaluate.relight_envs)."""
+def relight_envs(env, method):
+    """Environments a synthetic capture's estimates are relit under (config evaluate.relight_envs).
+    held_out leaves out the capture's own environment and, for a merge of all the object's
+    captures (rule merge_svbrdf), every capture environment: the merge has seen them all."""
     choice = config["evaluate"]["relight_envs"]
     if choice == "held_out":
-        return [e for e in ENVS if e != env]
+        seen = CAPTURE_ENVS if METHOD_REGISTRY[method].rule == "merge_svbrdf" else [env]
+        return [e for e in ENVS if e not in seen]
     return ENVS if choice == "all" else list(choice)
 
 
 # Every relit image set (object, env, poses, method, relight_env): synthetic captures
 # only, since a real capture has no test views under other environments.
-RELIGHTS = [(o, e, POSES, m, r) for o, e in SYNTHETIC_CAPTURES for m in METHODS for r in relight_envs(e)]
+RELIGHTS = [(o, e, POSES, m, r) for o, e in SYNTHETIC_CAPTURES for m in METHODS for r in relight_envs(e, m)]
 
 wildcard_constraints:
     object="|".join(OBJECTS),
