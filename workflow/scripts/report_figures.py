@@ -87,14 +87,15 @@ def regulariser(smk, log):
                    for width in (obs.a_prime, np.hypot(obs.a_prime, alpha)))
     expected = -2.0 * (alpha * np.arange(1, sh["lmax"] + 1)) ** 2
     errors = {}
-    warnings.simplefilter("ignore", RuntimeWarning)  # texels whose fit has no power at a degree: NaN, skipped
-    for option in FIT_OPTIONS:
-        b, l = (fit_option(option, local, values, weights, sh["lmax"], sh["lambda"], sh["penalise_dc"])
-                for values in (lobe, light))
-        errors[option] = np.nanmean(spectrum_log_ratio(b, l), axis=-1) - expected
-    rows = [{"option": o, "degree": l + 1, "median": np.nanmedian(e[:, l]), "q25": np.nanpercentile(e[:, l], 25),
-             "q75": np.nanpercentile(e[:, l], 75), "mean_abs": np.nanmean(np.abs(e[:, l]))}
-            for o, e in errors.items() for l in range(e.shape[1])]
+    with warnings.catch_warnings():  # texels whose fit has no power at a degree: NaN, skipped
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for option in FIT_OPTIONS:
+            b, l = (fit_option(option, local, values, weights, sh["lmax"], sh["lambda"], sh["penalise_dc"])
+                    for values in (lobe, light))
+            errors[option] = np.nanmean(spectrum_log_ratio(b, l), axis=-1) - expected
+        rows = [{"option": o, "degree": l + 1, "median": np.nanmedian(e[:, l]),
+                 "q25": np.nanpercentile(e[:, l], 25), "q75": np.nanpercentile(e[:, l], 75),
+                 "mean_abs": np.nanmean(np.abs(e[:, l]))} for o, e in errors.items() for l in range(e.shape[1])]
     with atomic_path(smk.output.table) as tmp:
         pd.DataFrame(rows).to_csv(tmp, sep="\t", index=False, float_format="%.4g")
     w = smk.wildcards
