@@ -295,8 +295,7 @@ def test_variants_differ_only_where_they_should() -> None:
 @pytest.mark.parametrize("method", list(OPTIMISER_METHODS))
 def test_gradient_matches_central_differences(small: dict, method: str) -> None:
     shadowing, masking, _ = variant(method)
-    problem = problem_of(small, small["radiance"], chunk_pairs=16)  # several chunks
-    assert len(problem.chunks) > 3
+    problem = problem_of(small, small["radiance"])
     rng = np.random.default_rng(7)
     x = rng.uniform(0.1, 0.9, (18, 5))  # roughness >= 0.1: away from the alpha clamp
     light = terms(small, problem, x[:, 3], shadowing)
@@ -331,18 +330,20 @@ def test_float32_loss_and_gradient_match_float64(small: dict) -> None:
     np.testing.assert_allclose(g32, g64, rtol=1e-3, atol=1e-4 * np.abs(g64).max())
 
 
-def test_threads_and_chunks_do_not_change_results(small: dict) -> None:
-    x = np.random.default_rng(9).uniform(0.1, 0.9, (18, 5))
-    p1 = problem_of(small, small["radiance"], chunk_pairs=16)
-    light = terms(small, p1, x[:, 3], True)
-    a = op.loss_and_gradient(x, p1, light, True, workers=1)
-    b = op.loss_and_gradient(x, p1, light, True, workers=2)
+def test_threads_do_not_change_results() -> None:
+    scene = synthetic_scene(300, 10, seed=31)  # several blocks of texels per thread
+    params = random_params(300, seed=32)
+    x = op.pack_params(params, 300)
+    problem = problem_of(scene, render(scene, params, "freq") * 1.1, "float32")
+    light = terms(scene, problem, x[:, 3], True)
+    a = op.loss_and_gradient(x, problem, light, True, workers=1)
+    b = op.loss_and_gradient(x, problem, light, True, workers=2)
     assert a[0] == b[0]
     np.testing.assert_array_equal(a[1], b[1])
-    p2 = problem_of(small, small["radiance"], chunk_pairs=10_000)
-    c = op.loss_and_gradient(x, p2, terms(small, p2, x[:, 3], True), True)
-    assert c[0] == pytest.approx(a[0], rel=1e-12)
-    np.testing.assert_allclose(c[1], a[1], rtol=1e-10, atol=1e-15)
+    start = op.grid_start(problem, light, True, np.linspace(0, 1, 5), np.linspace(0, 1, 3), workers=1)
+    np.testing.assert_array_equal(start, op.grid_start(problem, light, True, np.linspace(0, 1, 5),
+                                                       np.linspace(0, 1, 3), workers=2))
+    np.testing.assert_array_equal(light, op.light_terms(x[:, 3], problem, True, scene["light"], workers=2))
 
 
 # --------------------------------------------------------------------------
@@ -395,7 +396,7 @@ def test_optimisation_decreases_the_loss_and_respects_bounds(capture: tuple[dict
 
 
 def test_optimise_is_deterministic(small: dict) -> None:
-    kw = {"iterations": 20, "refit_every": 7, "chunk_pairs": 16}
+    kw = {"iterations": 20, "refit_every": 7}
     a = run(small, small["radiance"], "freq", **kw)
     b = run(small, small["radiance"], "freq", **kw)
     c = run(small, small["radiance"], "freq", workers=2, **kw)

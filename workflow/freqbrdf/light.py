@@ -39,29 +39,48 @@ __all__ = [
     "downsample_equirect",
 ]
 
-_TEXEL_CHUNK = 1024  # texels per block of similar normals (the texels x nodes shadowing matrix: 15 MB)
+_TEXEL_CHUNK = 1024  # texels per block (the texels x nodes shadowing matrix: 15 MB)
 
 
 @dataclass(frozen=True)
 class LightQuadrature:
     """Nodes of a product quadrature of the sphere carrying a band-limited light.
 
+    The nodes are ring-major: ``n_rings`` Gauss-Legendre rings in
+    ``cos theta`` times ``2 n_rings`` uniform azimuths. On such a grid
+    ``Y_lm(w_jk) = Theta_lm(theta_j) Phi_m(phi_k)`` (``Phi_m = cos(m phi)``,
+    1 or ``sin(|m| phi)``), so an integral against every ``Y_lm`` factorises
+    into a sum over azimuths per ring and then a sum over rings (the tables
+    ``azimuthal`` and ``polar``, with ``M = 2 lmax + 1`` orders indexed
+    ``m + lmax``).
+
     Attributes
     ----------
     lmax : int
         SH degree of the shadowed light fitted from the nodes (the model's l*).
     directions : numpy.ndarray
-        Shape ``(Q, 3)``, unit node directions (world frame).
+        Shape ``(Q, 3)``, unit node directions (world frame), ``Q = 2 n_rings^2``.
     weighted_radiance : numpy.ndarray
         Shape ``(Q, C)``: light radiance at each node times its weight (sr).
     basis : numpy.ndarray
         Shape ``(Q, (lmax+1)**2)``, float32: ``Y_lm`` at the nodes.
+    n_rings : int
+        Rings of the grid.
+    azimuthal : numpy.ndarray
+        Shape ``(n_rings, 2 n_rings, C * M)``, float32: weighted radiance times
+        ``Phi_m`` at each node, channel-major.
+    polar : numpy.ndarray
+        Shape ``(M, n_rings, lmax + 1)``, float32: ``Theta_lm`` at each ring
+        (0 where ``l < |m|``).
     """
 
     lmax: int
     directions: np.ndarray
     weighted_radiance: np.ndarray
     basis: np.ndarray
+    n_rings: int
+    azimuthal: np.ndarray
+    polar: np.ndarray
 
 
 def light_quadrature(envmap: np.ndarray, lmax: int, prefilter: float = 0.0, light_lmax: int | None = None) -> LightQuadrature:
@@ -112,13 +131,33 @@ def light_quadrature(envmap: np.ndarray, lmax: int, prefilter: float = 0.0, ligh
     phi = 2.0 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n)
     directions = angles_to_directions(np.arccos(t)[:, None], phi[None, :]).reshape(-1, 3)
     weights = np.repeat(w_t * (2.0 * np.pi / (2 * n)), 2 * n)
-    radiance = real_sh(directions, light_lmax) @ coeffs
+    weighted = (real_sh(directions, light_lmax) @ coeffs) * weights[:, None]
+    azimuthal, polar = _ring_tables(np.arccos(t), phi, weighted.reshape(n, 2 * n, -1), int(lmax))
     return LightQuadrature(
         lmax=int(lmax),
         directions=directions,
-        weighted_radiance=radiance * weights[:, None],
+        weighted_radiance=weighted,
         basis=real_sh(directions, int(lmax)).astype(np.float32),
+        n_rings=n,
+        azimuthal=azimuthal,
+        polar=polar,
     )
+
+
+def _ring_tables(theta: np.ndarray, phi: np.ndarray, weighted: np.ndarray, lmax: int) -> tuple[np.ndarray, np.ndarray]:
+    """`LightQuadrature.azimuthal` and `.polar` of rings ``theta`` (n,), azimuths ``phi`` (2n,)
+    and the weighted radiance on the grid (n, 2n, C)."""
+    m = np.arange(-lmax, lmax + 1)
+    mphi = np.abs(m)[None, :] * phi[:, None]  # (2n, M)
+    trig = np.where(m > 0, np.cos(mphi), np.where(m < 0, np.sin(mphi), 1.0))
+    azimuthal = np.einsum("jkc,km->jkcm", weighted, trig).reshape(weighted.shape[0], weighted.shape[1], -1)
+    # Theta_lm = Y_l|m| at azimuth 0, where Phi_|m| = 1 (sh.py's convention)
+    y = real_sh(angles_to_directions(theta, np.zeros_like(theta)), lmax)  # (n, (lmax+1)^2)
+    polar = np.zeros((m.shape[0], theta.shape[0], lmax + 1))
+    for l in range(lmax + 1):
+        for mm in range(-l, l + 1):
+            polar[mm + lmax, :, l] = y[:, l * l + l + abs(mm)]
+    return azimuthal.astype(np.float32), polar.astype(np.float32)
 
 
 def _shadowing_matrix(cos: np.ndarray, alpha: np.ndarray | None) -> np.ndarray:
@@ -150,8 +189,9 @@ def shadowed_light(
 
     ``Lg_lm(n) = int_{n.w > 0} G1(n . w, alpha) L(w) Y_lm(w) dw`` (paper
     section 4.2; without ``alpha``, ``G1 = 1``: the light of the upper
-    hemisphere only). Computed in float32: one product of the texels'
-    shadowing factors at the nodes with the nodes' light times basis.
+    hemisphere only). Computed in float32, as products of the texels'
+    shadowing factors at the nodes with the factorised basis of the
+    quadrature grid (`LightQuadrature`).
 
     Parameters
     ----------
@@ -179,23 +219,25 @@ def shadowed_light(
     q = quadrature
     n_coef = q.basis.shape[1]
     n_ch = q.weighted_radiance.shape[1]
-    # (Q, C * n): the light at each node times every basis function, channel-major
-    lit = (q.weighted_radiance.astype(np.float32)[:, :, None] * q.basis[:, None, :]).reshape(len(q.basis), -1)
+    n_orders = q.polar.shape[0]
+    # products with the texels on the last axis: every operand is a (possibly transposed)
+    # matrix that BLAS takes as it is, so no intermediate is copied or transposed
+    azimuthal = np.ascontiguousarray(q.azimuthal.transpose(0, 2, 1))  # (n, C*M, 2n)
+    polar = np.ascontiguousarray(q.polar.transpose(0, 2, 1))  # (M, L, n)
     dirs = q.directions.astype(np.float32)
-    # Blocks of texels with similar normals (sorted by latitude band, then
-    # azimuth) need only the nodes above some texel's horizon, about two
-    # thirds of them: the others contribute exactly 0.
-    order = np.lexsort((np.arctan2(n[:, 0], -n[:, 2]), np.floor(4.0 * (n[:, 1] + 1.0))))
-    normals32 = n[order].astype(np.float32)
-    alpha_sorted = None if alpha is None else alpha[order]
-    out = np.empty((n.shape[0], n_ch, n_coef), np.float32)
+    normals32 = n.astype(np.float32)
+    out = np.empty((n_ch, n_coef, n.shape[0]), np.float32)
 
     def block(a: int) -> None:
         b = min(n.shape[0], a + _TEXEL_CHUNK)
-        cos = normals32[a:b] @ dirs.T  # (t, Q)
-        used = (cos > 0.0).any(axis=0)
-        g = _shadowing_matrix(cos[:, used], None if alpha_sorted is None else alpha_sorted[a:b])
-        out[order[a:b]] = (g @ lit[used]).reshape(b - a, n_ch, n_coef)
+        g = _shadowing_matrix(normals32[a:b] @ dirs.T, None if alpha is None else alpha[a:b])  # (t, Q)
+        # sum over each ring's azimuths, then over rings (LightQuadrature): about 7 times
+        # fewer operations than one product with every node's Y_lm
+        rings = np.matmul(azimuthal, g.reshape(b - a, q.n_rings, -1).transpose(1, 2, 0))  # (n, C*M, t)
+        per_ring = rings.reshape(q.n_rings, n_ch, n_orders, b - a).transpose(1, 2, 0, 3)  # (C, M, n, t)
+        per_degree = np.matmul(polar, per_ring)  # (C, M, L, t)
+        for l in range(q.lmax + 1):  # flat indices l^2 .. l^2 + 2l are the orders m = -l .. l
+            out[:, l * l : (l + 1) * (l + 1), a:b] = per_degree[:, q.lmax - l : q.lmax + l + 1, l]
 
     starts = range(0, n.shape[0], _TEXEL_CHUNK)
     if workers > 1 and len(starts) > 1:
@@ -204,7 +246,7 @@ def shadowed_light(
     else:
         for a in starts:
             block(a)
-    return out.transpose(0, 2, 1)
+    return out.transpose(2, 1, 0)
 
 
 def downsample_equirect(envmap: np.ndarray, height: int) -> np.ndarray:

@@ -57,33 +57,28 @@ each step. Without shadowing the fitted light does not depend on alpha, so
 Layout and cost
 ---------------
 Only observed pairs are stored (`build_problem`; a 24-view capture observes
-about 30% of its texel-view pairs). Texels are grouped by their number of
-pairs into chunks of about ``chunk_pairs`` padded pairs, laid out (pair,
-texel) so that per-texel values broadcast and per-texel sums are sums over
-one axis; the chunks run on ``workers`` threads, write disjoint slices and
-are summed in a fixed order, so results do not depend on the number of
-threads. On the default sphere/studio capture (256^2 texels x 24 views,
-0.45 M observed pairs, 2 idle cores, l* = 20) ``freq`` takes about 27 s:
-11 s in four shadowed-light fits (the grid start's, the first step's and
-two partial refits), 5.6 s in the 150 Adam steps, 4.9 s evaluating the
-light at the mirror directions and 3.5 s building their `mirror_basis`;
-see ``bench/optimise_bench.py``.
+about 30% of its texel-view pairs), sorted by texel, so a texel's pairs are
+one contiguous run. The per-pair work (light terms, loss, gradient, grid
+start) runs in compiled kernels (:mod:`freqbrdf.kernels`) over texels on
+``workers`` threads; each texel's sums are its own and the per-texel results
+are summed in texel order, so results do not depend on the number of
+threads. Timings are measured by ``bench/optimise_bench.py``.
 """
 
 from __future__ import annotations
 
-from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Callable, Mapping
+from typing import Mapping
 
 import numpy as np
 from scipy import sparse
 
 from .artefacts import Observations
-from .brdf import R0_DIELECTRIC, TEXTURES, alpha_from_roughness, smith_g1, tan2_theta
+from .brdf import ALPHA_MIN, R0_DIELECTRIC, TEXTURES, alpha_from_roughness, tan2_theta
 from .light import LightQuadrature, irradiance, light_quadrature, shadowed_light
 from .methods import get_method
-from .sh import real_sh
+from .kernels import degree_sums, grid_search, l1_loss_gradient, set_threads
+from .sh import recurrence_tables
 from .shfit import mirror_directions
 from .validation import check_finite, check_int, check_shape
 
@@ -97,7 +92,6 @@ __all__ = [
     "build_problem",
     "pack_params",
     "unpack_params",
-    "mirror_basis",
     "light_terms",
     "refit_light",
     "forward",
@@ -110,7 +104,6 @@ __all__ = [
 PARAM_COLUMNS = ("base_r", "base_g", "base_b", "roughness", "metallic")  # columns of a packed (T, 5) array
 _N_PARAMS = len(PARAM_COLUMNS)
 _DTYPES = ("float32", "float64")
-_EVAL_CHUNK = 16384  # observations per chunk when evaluating the light terms (Y and Lg gathers: ~20 MB)
 
 
 # --------------------------------------------------------------------------
@@ -157,16 +150,11 @@ class OptimiseSettings:
         `identifiable_roughness` of the light's degree: below it the model
         does not resolve the lobe (README "Identifiable roughness").
     workers : int
-        Threads (chunks of texels run concurrently; results are identical
+        Threads (texels run concurrently; results are identical
         for any number).
     dtype : {"float32", "float64"}
         Precision of the per-observation arrays (parameters, gradients and
         Adam moments are always float64; the loss is accumulated in float64).
-    chunk_pairs : int
-        Padded observations per chunk of the loss and gradient: larger chunks
-        cost less Python overhead and fewer thread hand-offs, smaller ones
-        stay in the CPU cache (32768 was fastest on 2 cores; 4096-32768
-        differ by 1.5x).
     """
 
     iterations: int = 150
@@ -182,7 +170,6 @@ class OptimiseSettings:
     min_roughness: float = 0.0
     workers: int = 1
     dtype: str = "float32"
-    chunk_pairs: int = 32768
 
     def __post_init__(self) -> None:
         check_int(self.iterations, "iterations", 0)
@@ -190,7 +177,6 @@ class OptimiseSettings:
         check_int(self.grid_metallic, "grid_metallic", 2)
         check_int(self.refit_every, "refit_every", 1)
         check_int(self.workers, "workers", 1)
-        check_int(self.chunk_pairs, "chunk_pairs", 1)
         if not (np.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr must be a finite number > 0, got {self.lr!r}")
         if len(self.betas) != 2 or not all(0.0 <= b < 1.0 for b in self.betas):
@@ -291,37 +277,13 @@ def atlas_neighbours(texel: np.ndarray, resolution: int) -> np.ndarray:
 # observations
 # --------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
-class _Chunk:
-    """Observations of t texels with at most k pairs each, padded to (k, t).
-
-    Texel-major padding (pairs along axis 0, texels along the last axis) lets
-    per-texel values broadcast without gathers and per-texel sums be sums
-    over axis 0; texels are grouped by their number of pairs, so padding
-    wastes little (about 1% on a 24-view capture).
-    """
-
-    lo: int  # the chunk's texels are Problem.perm[lo:lo + t]
-    pairs: np.ndarray  # (k, t) int64, indices into the flat pair list (0 in padding)
-    valid: np.ndarray  # (k, t) dtype, 1 for a real pair, 0 for padding
-    schlick: np.ndarray  # (k, t) dtype, c5 = (1 - cos theta_o)^5, 0 in padding
-    one_minus_schlick: np.ndarray  # (k, t) dtype, 1 - c5
-    tan2: np.ndarray  # (k, t) dtype, tan^2 theta_o, 0 in padding
-    radiance: np.ndarray  # (3, k, t) dtype, observed B, 0 in padding
-
-    @property
-    def hi(self) -> int:
-        return self.lo + self.pairs.shape[1]
-
-
-@dataclass(frozen=True, eq=False)
 class Problem:
     """Observations of one capture in the layout the estimator works on.
 
     Build with `build_problem`. There are N observed (texel, view) pairs,
     sorted by texel; T_obs of the T texels have at least one. Internally the
-    parameters live in a permuted texel order (``perm``): the observed texels
-    chunk by chunk, then the others, so that each chunk's texels are a
-    contiguous slice.
+    parameters live in a permuted texel order (``perm``): the observed texels,
+    then the others, so that the observed ones are a contiguous slice.
 
     Attributes
     ----------
@@ -345,10 +307,14 @@ class Problem:
         Shape ``(M, 2)``, int64: `atlas_neighbours` of the texels.
     perm : numpy.ndarray
         Shape ``(T,)``, int64: texel at each internal position.
-    chunks : tuple
-        Padded per-chunk arrays of the loss (internal).
+    start : numpy.ndarray
+        Shape ``(T_obs + 1,)``, int64: first pair of each observed texel.
+    radiance : numpy.ndarray
+        Shape ``(N, 3)``, ``dtype``: observed B of each pair.
+    schlick, tan2 : numpy.ndarray
+        Shape ``(N,)``, ``dtype``: ``(1 - cos theta_o)^5`` and ``tan^2 theta_o``.
     irradiance_pi : numpy.ndarray
-        Shape ``(3, T_obs)``, float64: ``E / pi`` of ``perm[:T_obs]``.
+        Shape ``(T_obs, 3)``, float64: ``E / pi`` of the observed texels.
     tv_operator, tv_adjoint : scipy.sparse.csr_matrix
         Shapes ``(M, T)`` and ``(T, M)``: ``x_i - x_j`` of each neighbour pair
         (internal order) and its transpose.
@@ -369,7 +335,10 @@ class Problem:
     irradiance: np.ndarray
     neighbours: np.ndarray
     perm: np.ndarray
-    chunks: tuple[_Chunk, ...]
+    start: np.ndarray
+    radiance: np.ndarray
+    schlick: np.ndarray
+    tan2: np.ndarray
     irradiance_pi: np.ndarray
     tv_operator: sparse.csr_matrix
     tv_adjoint: sparse.csr_matrix
@@ -384,47 +353,6 @@ class Problem:
     def n_observed(self) -> int:
         """Number of texels with at least one pair, T_obs."""
         return int(self.observed.shape[0])
-
-
-def _group_texels(counts: np.ndarray, chunk_pairs: int) -> list[np.ndarray]:
-    """Positions into ``counts`` (pairs per texel, all > 0) grouped into padded chunks.
-
-    Texels are sorted by count (stable, so deterministic) and cut so that
-    ``max count * texels <= chunk_pairs`` (at least one texel per chunk).
-    """
-    order = np.argsort(counts, kind="stable")
-    sorted_counts = counts[order]
-    groups = []
-    i = 0
-    while i < order.shape[0]:
-        # counts ascend, so the padded size of order[i:j], counts[j-1] (j - i), increases with j
-        size = sorted_counts[i:] * np.arange(1, order.shape[0] - i + 1)
-        j = i + max(1, int(np.count_nonzero(size <= chunk_pairs)))
-        groups.append(order[i:j])
-        i = j
-    return groups
-
-
-def _make_chunk(
-    slots: np.ndarray, lo: int, counts: np.ndarray, first: np.ndarray, cos_o: np.ndarray, radiance: np.ndarray,
-    ftype: np.dtype,
-) -> _Chunk:
-    """Padded arrays of the observed texels ``slots`` (positions into ``counts``)."""
-    k = int(counts[slots].max())
-    rank = np.arange(k)[:, None]
-    valid = rank < counts[slots][None, :]
-    pairs = np.where(valid, first[slots][None, :] + rank, 0)
-    c = np.where(valid, cos_o[pairs], 1.0)  # 1 gives padding tan^2 = 0 and c5 = 0
-    c5 = (1.0 - c) ** 5
-    return _Chunk(
-        lo=lo,
-        pairs=pairs,
-        valid=valid.astype(ftype),
-        schlick=c5.astype(ftype),
-        one_minus_schlick=(1.0 - c5).astype(ftype),
-        tan2=tan2_theta(c).astype(ftype),
-        radiance=np.ascontiguousarray(np.moveaxis(radiance[pairs], -1, 0) * valid, dtype=ftype),
-    )
 
 
 def _difference_operator(neighbours: np.ndarray, n_texels: int) -> sparse.csr_matrix:
@@ -493,12 +421,7 @@ def _observed_pairs(obs: Observations) -> tuple[np.ndarray, ...]:
     return pt, pv, b_p, wo_p / norm[:, None], cos_o
 
 
-def build_problem(
-    obs: Observations,
-    irradiance: np.ndarray,
-    dtype: str = "float32",
-    chunk_pairs: int = 32768,
-) -> Problem:
+def build_problem(obs: Observations, irradiance: np.ndarray, dtype: str = "float32") -> Problem:
     """Validate a capture's observations and arrange them for the estimator.
 
     Parameters
@@ -511,8 +434,6 @@ def build_problem(
         Shape ``(T, 3)``, E at the texel normals (radiance times sr).
     dtype : {"float32", "float64"}
         Precision of the per-observation arrays of the loss.
-    chunk_pairs : int
-        Padded observations per chunk (see `OptimiseSettings`).
 
     Returns
     -------
@@ -520,7 +441,6 @@ def build_problem(
     """
     if dtype not in _DTYPES:
         raise ValueError(f"dtype must be one of {_DTYPES}, got {dtype!r}")
-    chunk_pairs = check_int(chunk_pairs, "chunk_pairs", 1)
     e = _check_inputs(obs, irradiance)
     n_tex, n_views = obs.weight.shape
     fr, t, resolution = obs.frame.astype(np.float64), np.asarray(obs.texels.texel), int(obs.texels.resolution)
@@ -530,13 +450,8 @@ def build_problem(
     all_counts = np.bincount(pt, minlength=n_tex)
     observed = np.nonzero(all_counts)[0].astype(np.int64)
     counts = all_counts[observed]
-    first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
     ftype = np.dtype(dtype)
-    groups = _group_texels(counts, chunk_pairs)
-    offsets = np.concatenate([[0], np.cumsum([g.shape[0] for g in groups])])
-    chunks = tuple(_make_chunk(g, int(lo), counts, first, cos_o, b_p, ftype) for g, lo in zip(groups, offsets))
-    order = observed[np.concatenate(groups)]
-    perm = np.concatenate([order, np.nonzero(all_counts == 0)[0]]).astype(np.int64)
+    perm = np.concatenate([observed, np.nonzero(all_counts == 0)[0]]).astype(np.int64)
     position = np.empty(n_tex, dtype=np.int64)
     position[perm] = np.arange(n_tex)
     neighbours = atlas_neighbours(t, resolution)
@@ -555,8 +470,11 @@ def build_problem(
         irradiance=e,
         neighbours=neighbours,
         perm=perm,
-        chunks=chunks,
-        irradiance_pi=np.ascontiguousarray(e[order].T / np.pi),
+        start=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+        radiance=b_p.astype(ftype),
+        schlick=((1.0 - cos_o) ** 5).astype(ftype),
+        tan2=tan2_theta(cos_o).astype(ftype),
+        irradiance_pi=e[observed] / np.pi,
         tv_operator=tv_op,
         tv_adjoint=tv_op.T.tocsr(),
         dtype=ftype,
@@ -610,52 +528,15 @@ def _check_x(x: np.ndarray, problem: Problem) -> np.ndarray:
     return x
 
 
-def _run(pool: Executor | None, fn: Callable[[int], object], n: int) -> list:
-    """``[fn(i) for i in range(n)]``, on ``pool`` if given (results in order)."""
-    if pool is None or n == 1:
-        return [fn(i) for i in range(n)]
-    return list(pool.map(fn, range(n)))
-
-
 # --------------------------------------------------------------------------
 # shadowed light
 # --------------------------------------------------------------------------
-def mirror_basis(problem: Problem, lmax: int, max_bytes: float = 2**30) -> np.ndarray | None:
-    """``Y_lm`` at every observation's mirror direction, float32, or None when it would not fit.
-
-    `optimise` evaluates the light at the same directions four times; at
-    256^2 texels x 24 views and l* = 20 the table takes 0.8 GB and 3.5 s
-    to build, once instead of at every evaluation.
-
-    Parameters
-    ----------
-    problem : Problem
-        Observations.
-    lmax : int
-        Degree of the basis.
-    max_bytes : float
-        Largest table to keep.
-
-    Returns
-    -------
-    numpy.ndarray or None
-        Shape ``(N, (lmax+1)**2)``.
-    """
-    if problem.n_pairs * (lmax + 1) ** 2 * 4 > max_bytes:
-        return None
-    out = np.empty((problem.n_pairs, (lmax + 1) ** 2), np.float32)
-    for a in range(0, problem.n_pairs, _EVAL_CHUNK):
-        out[a : a + _EVAL_CHUNK] = real_sh(problem.mirror[a : a + _EVAL_CHUNK], lmax)
-    return out
-
-
 def light_terms(
     roughness: np.ndarray,
     problem: Problem,
     shadowing: bool,
     light: LightQuadrature,
     workers: int = 1,
-    basis: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per-degree contributions of the (shadowed) environment light at each observation.
 
@@ -679,8 +560,6 @@ def light_terms(
         The environment (:func:`freqbrdf.light.light_quadrature`).
     workers : int
         Threads of the evaluation.
-    basis : numpy.ndarray, optional
-        `mirror_basis` of the problem at ``light.lmax`` (computed on the fly if absent).
 
     Returns
     -------
@@ -695,16 +574,17 @@ def light_terms(
     workers = check_int(workers, "workers", 1)
     out = np.empty((problem.n_pairs, light.lmax + 1, 3), dtype=problem.dtype)
     if shadowing:
-        refit_light(out, r, problem, light, np.arange(problem.n_observed), workers, basis)
+        refit_light(out, r, problem, light, np.arange(problem.n_observed), workers)
     else:
         lg = (light.basis.T.astype(np.float64) @ light.weighted_radiance)[None]  # (1, n, 3)
-        _evaluate_light(out, np.arange(problem.n_pairs), None, lg, problem, workers, basis)
+        pairs = np.arange(problem.n_pairs)
+        _evaluate_light(out, pairs, np.zeros_like(pairs), lg, problem, workers)
     return out
 
 
 def refit_light(
     out: np.ndarray, roughness: np.ndarray, problem: Problem, light: LightQuadrature, slots: np.ndarray,
-    workers: int, basis: np.ndarray | None = None,
+    workers: int,
 ) -> None:
     """Refit the shadowed light of the observed texels ``slots`` (positions into ``problem.observed``)
     at ``roughness`` and overwrite their observations' rows of ``out`` (`light_terms`)."""
@@ -713,36 +593,16 @@ def refit_light(
     local = np.full(problem.n_observed, -1, dtype=np.int64)
     local[slots] = np.arange(slots.shape[0])
     pairs = np.nonzero(local[problem.pair_slot] >= 0)[0]
-    _evaluate_light(out, pairs, local[problem.pair_slot[pairs]], lg, problem, workers, basis)
+    _evaluate_light(out, pairs, local[problem.pair_slot[pairs]], lg, problem, workers)
 
 
 def _evaluate_light(
-    out: np.ndarray, pairs: np.ndarray, rows: np.ndarray | None, lg: np.ndarray, problem: Problem, workers: int,
-    basis: np.ndarray | None,
+    out: np.ndarray, pairs: np.ndarray, rows: np.ndarray, lg: np.ndarray, problem: Problem, workers: int
 ) -> None:
-    """``out[pairs[i], l] = sum_m lg[rows[i], lm] Y_lm(mirror of pairs[i])`` per degree l
-    (``rows`` None: the one expansion ``lg[0]`` for every pair)."""
-    lmax = out.shape[1] - 1
-    degree = np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
-    per_degree = (degree[:, None] == np.arange(lmax + 1)[None, :]).astype(np.float32)  # (n, L)
-    if rows is None:  # one expansion: a single product with a (n, L * C) matrix
-        shared = (lg[0].astype(np.float32)[:, None, :] * per_degree[:, :, None]).reshape(lg.shape[1], -1)
-    n_chunks = -(-pairs.shape[0] // _EVAL_CHUNK)
-
-    def evaluate(i: int) -> None:
-        sel = pairs[i * _EVAL_CHUNK : (i + 1) * _EVAL_CHUNK]
-        y = basis[sel] if basis is not None else real_sh(problem.mirror[sel], lmax).astype(np.float32)
-        if rows is None:
-            out[sel] = (y @ shared).reshape(sel.shape[0], lmax + 1, -1)
-        else:
-            terms = y[:, :, None] * lg[rows[i * _EVAL_CHUNK : (i + 1) * _EVAL_CHUNK]]  # (n, (lmax+1)^2, C)
-            out[sel] = np.matmul(terms.transpose(0, 2, 1), per_degree).transpose(0, 2, 1)
-
-    if workers == 1:
-        _run(None, evaluate, n_chunks)
-    else:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            _run(pool, evaluate, n_chunks)
+    """``out[pairs[i], l] = sum_m lg[rows[i], lm] Y_lm(mirror of pairs[i])`` per degree l."""
+    a, b = recurrence_tables(out.shape[1] - 1)
+    set_threads(workers)
+    degree_sums(lg, rows.astype(np.int64), pairs.astype(np.int64), problem.mirror, a, b, out)
 
 
 def _check_light(light: np.ndarray, problem: Problem) -> np.ndarray:
@@ -752,127 +612,9 @@ def _check_light(light: np.ndarray, problem: Problem) -> np.ndarray:
     return p
 
 
-def _pad_light(light: np.ndarray, problem: Problem) -> list[np.ndarray]:
-    """Flat light terms (N, L, 3) -> per chunk (L, 3, k, t), 0 in padding."""
-    out = []
-    for ch in problem.chunks:
-        p = light[ch.pairs].astype(problem.dtype)  # (k, t, L, 3)
-        p *= ch.valid[:, :, None, None]
-        out.append(np.ascontiguousarray(p.transpose(2, 3, 0, 1)))
-    return out
-
-
 # --------------------------------------------------------------------------
 # model, loss and gradient
 # --------------------------------------------------------------------------
-def _lobe_filter(alpha: np.ndarray, n_degrees: int) -> np.ndarray:
-    """``exp(-(alpha l)^2)`` for l = 0..n_degrees-1, shape (n_degrees, t).
-
-    As ``q^(l^2)`` with ``q = exp(-alpha^2)`` and ``q^(l^2) = q^((l-1)^2) q^(2l-1)``:
-    one exp per texel instead of one per degree (exp dominated the per-texel cost).
-    """
-    q = np.exp(-alpha * alpha)
-    q2 = q * q
-    out = np.empty((n_degrees,) + alpha.shape)
-    out[0] = 1.0
-    step = q  # q^(2l - 1)
-    for l in range(1, n_degrees):
-        out[l] = out[l - 1] * step
-        step = step * q2
-    return out
-
-
-@dataclass(frozen=True)
-class _TexelTerms:
-    """Per-texel quantities of one chunk's texels (texel axis last, contiguous)."""
-
-    alpha: np.ndarray  # (t,) dtype
-    filters: np.ndarray  # (2, L, t) dtype: exp(-(alpha l)^2) and its derivative by alpha
-    diffuse: np.ndarray  # (3, 1, t) dtype, (1 - m) base E / pi
-    r0: np.ndarray  # (3, 1, t) dtype
-
-
-def _texel_terms(xc: np.ndarray, e_pi: np.ndarray, n_degrees: int, ftype: np.dtype) -> _TexelTerms:
-    """`_TexelTerms` of parameters ``xc`` (5, t) with ``E / pi`` ``e_pi`` (3, t).
-
-    Computed per chunk: small C-contiguous arrays broadcast several times
-    faster than strided slices of texture-sized ones.
-    """
-    base, r, m = xc[:3], xc[3], xc[4]
-    alpha = alpha_from_roughness(r)[0]
-    filt = _lobe_filter(alpha, n_degrees)
-    l2 = np.arange(n_degrees, dtype=np.float64)[:, None] ** 2
-    filters = np.empty((2, n_degrees, xc.shape[1]), dtype=ftype)
-    filters[0] = filt
-    filters[1] = -2.0 * alpha * l2 * filt
-    return _TexelTerms(
-        alpha=alpha.astype(ftype),
-        filters=filters,
-        diffuse=((1.0 - m) * base * e_pi).astype(ftype)[:, None, :],
-        r0=(R0_DIELECTRIC * (1.0 - m) + m * base).astype(ftype)[:, None, :],
-    )
-
-
-def _chunk_model(tt: _TexelTerms, ch: _Chunk, p: np.ndarray, masking: bool) -> tuple[np.ndarray, ...]:
-    """Model radiance (3, k, t) of one chunk and the intermediates its gradient reuses."""
-    # one pass over P for Spec and dSpec/dalpha (the pass is the costliest step)
-    spec, dspec = np.einsum("alt,lckt->ackt", tt.filters, p)
-    fresnel = tt.r0 * ch.one_minus_schlick
-    fresnel += ch.schlick
-    if masking:
-        s = np.sqrt(1 + tt.alpha * tt.alpha * ch.tan2)
-        g1 = 2 / (1 + s)
-        gspec = spec * g1
-    else:
-        s = g1 = None
-        gspec = spec
-    model = fresnel * gspec
-    model += tt.diffuse
-    return model, spec, dspec, gspec, fresnel, s, g1
-
-
-def _chunk_loss_and_gradient(
-    xp: np.ndarray, problem: Problem, c: int, p: np.ndarray, masking: bool
-) -> tuple[float, np.ndarray]:
-    """L1 sum over chunk c and its gradient with respect to the chunk's texels (5, t).
-
-    With ``g = sign(B_model - B_obs)`` per pair and channel (0 in padding),
-    the per-texel sums ``A = sum_k g``, ``S = sum_k g (1 - c5) G1m Spec``
-    and ``D = sum_kc g F d(G1m Spec)/dalpha`` give the gradient
-    (`loss_and_gradient`).
-    """
-    ch = problem.chunks[c]
-    xc = np.ascontiguousarray(xp[ch.lo : ch.hi].T)  # (5, t)
-    e_pi = problem.irradiance_pi[:, ch.lo : ch.hi]
-    tt = _texel_terms(xc, e_pi, p.shape[0], problem.dtype)
-    model, spec, dspec, gspec, fresnel, s, g1 = _chunk_model(tt, ch, p, masking)
-    res = model
-    res -= ch.radiance
-    g = np.sign(res)
-    g *= ch.valid
-    loss = float(np.vdot(g, res))  # sum |res| over real pairs
-    sum_a = g.sum(axis=1, dtype=np.float64)
-    sum_s = np.einsum("ckt,kt,ckt->ct", g, ch.one_minus_schlick, gspec).astype(np.float64)
-    if masking:
-        # dG1/dalpha = -2 alpha tan^2 / (s (1 + s)^2) = -G1^2 alpha tan^2 / (2 s)
-        dg1 = -(g1 * g1) * tt.alpha * ch.tan2 / (2 * s)
-        dgspec = spec * dg1
-        dspec *= g1
-        dgspec += dspec
-    else:
-        dgspec = dspec
-    g *= fresnel
-    sum_d = np.einsum("ckt,ckt->t", g, dgspec).astype(np.float64)
-
-    base, m = xc[:3], xc[4]
-    grad = np.empty_like(xc)
-    # B = (1 - m) base E / pi + (R0 (1 - c5) + c5) G1m Spec,  R0 = 0.04 (1 - m) + m base
-    grad[:3] = (1.0 - m) * e_pi * sum_a + m * sum_s
-    grad[3] = sum_d * alpha_from_roughness(xc[3])[1]
-    grad[4] = (-base * e_pi * sum_a + (base - R0_DIELECTRIC) * sum_s).sum(axis=0)
-    return loss, grad
-
-
 def _tv(xp: np.ndarray, op: sparse.csr_matrix, adjoint: sparse.csr_matrix) -> tuple[float, np.ndarray]:
     """TV and its gradient with a difference operator and its transpose (see `total_variation`)."""
     if op.shape[0] == 0:
@@ -909,15 +651,23 @@ def total_variation(x: np.ndarray, neighbours: np.ndarray) -> tuple[float, np.nd
     return _tv(x, op, op.T.tocsr())
 
 
+def _l1(xp: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, model: np.ndarray | None = None):
+    """Per-texel L1 data term and gradient of the observed texels (`freqbrdf.kernels.l1_loss_gradient`)."""
+    return l1_loss_gradient(
+        np.ascontiguousarray(xp[: problem.n_observed]), problem.start, light, problem.radiance, problem.schlick,
+        problem.tan2, problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, model,
+    )
+
+
 def _loss_and_gradient(
-    xp: np.ndarray, problem: Problem, light: list[np.ndarray], masking: bool, tv_weight: float, pool: Executor | None
+    xp: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float
 ) -> tuple[float, np.ndarray]:
-    """`loss_and_gradient` of internal-order ``xp`` with padded light terms (`_pad_light`)."""
-    parts = _run(pool, lambda c: _chunk_loss_and_gradient(xp, problem, c, light[c], masking), len(light))
+    """`loss_and_gradient` of internal-order ``xp`` (texel-order sums, so independent of threads)."""
+    loss_per_texel, grad_obs = _l1(xp, problem, light, masking)
     scale = 1.0 / (3.0 * problem.n_pairs)  # mean over pairs and channels
     grad = np.zeros_like(xp)
-    grad[: problem.n_observed] = np.concatenate([p[1] for p in parts], axis=1).T * scale
-    loss = sum(p[0] for p in parts) * scale
+    grad[: problem.n_observed] = grad_obs * scale
+    loss = float(np.sum(loss_per_texel)) * scale
     if tv_weight > 0:
         tv, tv_grad = _tv(xp, problem.tv_operator, problem.tv_adjoint)
         loss += tv_weight * tv
@@ -946,15 +696,10 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool) -
     """
     x = _check_x(x, problem)
     p = _check_light(light, problem)
-    xp = x[problem.perm]
+    model = np.empty((problem.n_pairs, 3))
+    _l1(x[problem.perm], problem, p, masking, model)
     out = np.zeros((problem.n_texels, problem.n_views, 3))
-    for ch, pc in zip(problem.chunks, _pad_light(p, problem)):
-        xc = np.ascontiguousarray(xp[ch.lo : ch.hi].T)
-        tt = _texel_terms(xc, problem.irradiance_pi[:, ch.lo : ch.hi], p.shape[1], problem.dtype)
-        model = _chunk_model(tt, ch, pc, masking)[0]
-        real = ch.valid > 0
-        pairs = ch.pairs[real]
-        out[problem.pair_texel[pairs], problem.pair_view[pairs]] = np.moveaxis(model, 0, -1)[real]
+    out[problem.pair_texel, problem.pair_view] = model
     return out
 
 
@@ -1002,49 +747,11 @@ def loss_and_gradient(
     tv_weight = float(tv_weight)
     if not (np.isfinite(tv_weight) and tv_weight >= 0):
         raise ValueError(f"tv_weight must be a finite number >= 0, got {tv_weight!r}")
-    workers = check_int(workers, "workers", 1)
-    padded = _pad_light(p, problem)
-    xp = x[problem.perm]
-    if workers == 1:
-        loss, grad_p = _loss_and_gradient(xp, problem, padded, masking, tv_weight, None)
-    else:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            loss, grad_p = _loss_and_gradient(xp, problem, padded, masking, tv_weight, pool)
+    set_threads(check_int(workers, "workers", 1))
+    loss, grad_p = _loss_and_gradient(x[problem.perm], problem, p, masking, tv_weight)
     grad = np.empty_like(grad_p)
     grad[problem.perm] = grad_p
     return loss, grad
-
-
-def _chunk_grid_start(
-    problem: Problem, c: int, p: np.ndarray, masking: bool, roughness: np.ndarray, metallic: np.ndarray
-) -> np.ndarray:
-    """Best grid point of chunk c's texels, shape (5, t); see `grid_start`."""
-    ch = problem.chunks[c]
-    e_pi = problem.irradiance_pi[:, ch.lo : ch.hi].astype(np.float64)[:, None, :]  # (3, 1, t)
-    obs = ch.radiance.astype(np.float64)
-    valid = ch.valid.astype(np.float64)
-    best = np.full(ch.pairs.shape[1], np.inf)
-    out = np.zeros((_N_PARAMS, ch.pairs.shape[1]))
-    for r in roughness:
-        alpha = alpha_from_roughness(np.array([r]))[0]
-        spec = np.einsum("l,lckt->ckt", _lobe_filter(alpha, p.shape[0])[:, 0], p)
-        if masking:
-            spec = spec * smith_g1(ch.tan2, alpha)
-        spec_rise = spec * ch.one_minus_schlick  # the part of F G1m Spec that R0 scales
-        for m in metallic:
-            # B = base a + b per channel, linear in the base colour once (r, m) are fixed
-            a = (1.0 - m) * e_pi + m * spec_rise
-            b = R0_DIELECTRIC * (1.0 - m) * spec_rise + ch.schlick * spec
-            a *= valid
-            base = np.einsum("ckt,ckt->ct", a, obs - b) / np.maximum(np.einsum("ckt,ckt->ct", a, a), 1e-12)
-            base = np.clip(base, 0.0, 1.0)
-            cost = np.einsum("ckt,kt->t", np.abs(a * base[:, None, :] + b - obs), valid)
-            better = cost < best
-            best = np.where(better, cost, best)
-            out[:3, better] = base[:, better]
-            out[3, better] = r
-            out[4, better] = m
-    return out
 
 
 def grid_start(
@@ -1081,21 +788,12 @@ def grid_start(
         Shape ``(T, 5)``, packed parameters; 0.5 for texels without observations.
     """
     p = _check_light(light, problem)
-    padded = _pad_light(p, problem)
-    workers = check_int(workers, "workers", 1)
-    r_grid = np.asarray(roughness, dtype=np.float64)
-    m_grid = np.asarray(metallic, dtype=np.float64)
-
-    def run_chunk(c: int) -> np.ndarray:
-        return _chunk_grid_start(problem, c, padded[c], masking, r_grid, m_grid)
-
-    if workers == 1:
-        parts = _run(None, run_chunk, len(padded))
-    else:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            parts = _run(pool, run_chunk, len(padded))
+    set_threads(check_int(workers, "workers", 1))
     xp = np.full((problem.n_texels, _N_PARAMS), 0.5)
-    xp[: problem.n_observed] = np.concatenate(parts, axis=1).T
+    xp[: problem.n_observed] = grid_search(
+        problem.start, p, problem.radiance, problem.schlick, problem.tan2, problem.irradiance_pi, masking,
+        ALPHA_MIN, R0_DIELECTRIC, roughness, metallic,
+    )
     x = np.empty_like(xp)
     x[problem.perm] = xp
     return x
@@ -1182,10 +880,9 @@ def optimise(
     shadowing, masking = _check_method(method)
     if not isinstance(settings, OptimiseSettings):
         raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
-    problem = build_problem(obs, irradiance, settings.dtype, settings.chunk_pairs)
-    basis = mirror_basis(problem, light.lmax)
-    xp = _start(problem, light, init, shadowing, masking, settings, basis)[problem.perm]  # internal order (see Problem)
-    xp, curve = _descend(xp, problem, light, shadowing, masking, settings, basis)
+    problem = build_problem(obs, irradiance, settings.dtype)
+    xp = _start(problem, light, init, shadowing, masking, settings)[problem.perm]  # internal order (see Problem)
+    xp, curve = _descend(xp, problem, light, shadowing, masking, settings)
     x = np.empty_like(xp)
     x[problem.perm] = xp
     return unpack_params(x), curve
@@ -1193,7 +890,7 @@ def optimise(
 
 def _start(
     problem: Problem, light: LightQuadrature, init: Mapping[str, np.ndarray] | None, shadowing: bool, masking: bool,
-    settings: OptimiseSettings, basis: np.ndarray | None,
+    settings: OptimiseSettings,
 ) -> np.ndarray:
     """Packed start parameters (T, 5): ``init``, else the grid start or 0.5 everywhere."""
     if init is not None:
@@ -1202,7 +899,7 @@ def _start(
         # shadowed at a middle roughness: with the unshadowed light (no horizon) 1 of the 64
         # texels of the noise-free test in tests/test_light.py starts in another basin
         return grid_start(
-            problem, light_terms(np.full(problem.n_texels, 0.5), problem, shadowing, light, settings.workers, basis),
+            problem, light_terms(np.full(problem.n_texels, 0.5), problem, shadowing, light, settings.workers),
             masking, np.linspace(0.0, 1.0, settings.grid_roughness), np.linspace(0.0, 1.0, settings.grid_metallic),
             settings.workers,
         )
@@ -1211,7 +908,7 @@ def _start(
 
 def _descend(
     xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool,
-    settings: OptimiseSettings, basis: np.ndarray | None,
+    settings: OptimiseSettings,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Adam from ``xp`` (internal order), refitting the shadowed light as roughness moves;
     returns the parameters and the loss at the start of each iteration."""
@@ -1221,30 +918,24 @@ def _descend(
     m2 = np.zeros_like(xp)
     curve = np.empty(settings.iterations)
     roughness = np.empty(problem.n_texels)
-    padded: list[np.ndarray] = []
-    flat = np.empty(0)
+    flat: np.ndarray | None = None
     fitted = np.full(problem.n_observed, np.nan)  # roughness each texel's shadowed light was fitted at
-    pool = ThreadPoolExecutor(max_workers=settings.workers) if settings.workers > 1 else None
-    try:
-        for it in range(settings.iterations):
-            # without shadowing the fitted light does not depend on alpha: one fit is exact
-            if not padded or (shadowing and it % settings.refit_every == 0):
-                roughness[problem.perm] = xp[:, 3]
-                if not padded:
-                    flat = light_terms(roughness, problem, shadowing, light, settings.workers, basis)
-                    fitted[:] = roughness[problem.observed]
-                else:
-                    # only texels whose roughness moved since their last fit (most stay near the start)
-                    now = roughness[problem.observed]
-                    slots = np.nonzero(np.abs(now - fitted) > settings.refit_tolerance)[0]
-                    if slots.size:
-                        refit_light(flat, roughness, problem, light, slots, settings.workers, basis)
-                        fitted[slots] = now[slots]
-                padded = _pad_light(flat, problem)
-            curve[it], grad = _loss_and_gradient(xp, problem, padded, masking, settings.tv_weight, pool)
-            xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
-            xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
-    finally:
-        if pool is not None:
-            pool.shutdown()
+    set_threads(settings.workers)
+    for it in range(settings.iterations):
+        # without shadowing the fitted light does not depend on alpha: one fit is exact
+        if flat is None or (shadowing and it % settings.refit_every == 0):
+            roughness[problem.perm] = xp[:, 3]
+            if flat is None:
+                flat = light_terms(roughness, problem, shadowing, light, settings.workers)
+                fitted[:] = roughness[problem.observed]
+            else:
+                # only texels whose roughness moved since their last fit (most stay near the start)
+                now = roughness[problem.observed]
+                slots = np.nonzero(np.abs(now - fitted) > settings.refit_tolerance)[0]
+                if slots.size:
+                    refit_light(flat, roughness, problem, light, slots, settings.workers)
+                    fitted[slots] = now[slots]
+        curve[it], grad = _loss_and_gradient(xp, problem, flat, masking, settings.tv_weight)
+        xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
+        xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     return xp, curve

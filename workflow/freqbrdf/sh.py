@@ -69,6 +69,7 @@ __all__ = [
     "directions_to_angles",
     "angles_to_directions",
     "real_sh",
+    "recurrence_tables",
     "eval_sh",
     "equirect_directions",
     "equirect_solid_angles",
@@ -200,7 +201,7 @@ def angles_to_directions(theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------
 # core evaluation
 # --------------------------------------------------------------------------
-def _recurrence_tables(lmax: int) -> tuple[np.ndarray, np.ndarray]:
+def recurrence_tables(lmax: int) -> tuple[np.ndarray, np.ndarray]:
     """Coefficients a_lm, b_lm of the normalised Legendre recurrence.
 
     ``q_l^m = a_lm (t q_{l-1}^m - b_lm q_{l-2}^m)`` for ``l >= m + 2``, where
@@ -290,7 +291,7 @@ def _sh_blocks(d_flat: np.ndarray, lmax: int) -> Iterator[tuple[int, int, np.nda
     k = (lmax + 1) ** 2
     block = int(min(max(_BLOCK_VALUES // k, 256), 16384))
     block = min(block, max(n, 1))
-    a, b = _recurrence_tables(lmax)
+    a, b = recurrence_tables(lmax)
     buf = np.empty((k, block))
     for start in range(0, n, block):
         stop = min(n, start + block)

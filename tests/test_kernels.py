@@ -1,0 +1,25 @@
+"""The compiled kernels against their NumPy definitions (freqbrdf.kernels)."""
+
+import numpy as np
+import pytest
+
+from freqbrdf import kernels
+from freqbrdf.sh import real_sh, recurrence_tables, sh_degrees
+
+
+@pytest.mark.parametrize("lmax", [0, 1, 2, 7, 20])
+def test_degree_sums_are_per_degree_sums_of_the_expansion_times_real_sh(lmax: int) -> None:
+    rng = np.random.default_rng(lmax)
+    n_pairs, n_exp, n = 700, 40, (lmax + 1) ** 2
+    mirror = rng.normal(size=(n_pairs, 3)) * rng.uniform(0.5, 2.0, (n_pairs, 1))  # not unit: normalised inside
+    lg = rng.normal(size=(3, n, n_exp)).astype(np.float32).transpose(2, 1, 0)  # strided, as shadowed_light's
+    rows = rng.integers(0, n_exp, n_pairs)
+    pairs = rng.permutation(n_pairs)[:500]
+    out = np.full((n_pairs, lmax + 1, 3), np.nan, np.float32)
+    kernels.degree_sums(lg, rows[:500], pairs, mirror, *recurrence_tables(lmax), out)
+    y = real_sh(mirror[pairs], lmax)  # (500, n)
+    terms = y[:, :, None] * lg[rows[:500]].astype(np.float64)
+    expected = np.stack([terms[:, sh_degrees(lmax) == l].sum(axis=1) for l in range(lmax + 1)], axis=1)
+    np.testing.assert_allclose(out[pairs], expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+    untouched = np.setdiff1d(np.arange(n_pairs), pairs)
+    assert np.isnan(out[untouched]).all()

@@ -1,0 +1,326 @@
+"""Compiled (numba) inner loops of the gradient-descent estimator.
+
+Each kernel fuses a computation that NumPy would spread over several
+texture-sized temporaries; its plain-NumPy counterpart in `freqbrdf.sh` or
+`freqbrdf.optimise` is the reference that the tests compare it with. The
+kernels are compiled on first use and cached on disk (numba ``cache=True``),
+so only the first job on a machine pays the compile.
+
+Threads: the kernels run on numba's thread pool; `set_threads` sizes it.
+Every output element is written by exactly one iteration of a parallel loop
+and no reduction crosses iterations, so results do not depend on the
+number of threads.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["set_threads", "degree_sums", "l1_loss_gradient", "grid_search"]
+
+_INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
+_SQRT2 = np.sqrt(2.0)
+_BLOCK = 256  # pairs per parallel iteration (one SH buffer each)
+_TEXELS = 64  # texels per parallel iteration (one set of scratch arrays each)
+
+
+def set_threads(workers: int) -> None:
+    """Use ``workers`` threads (at most numba's configured maximum) in the kernels."""
+    numba.set_num_threads(max(1, min(int(workers), numba.config.NUMBA_NUM_THREADS)))
+
+
+@numba.njit(cache=True, inline="always")
+def _real_sh_point(x, y, z, lmax, a, b, out):  # pragma: no cover - compiled
+    """Real SH of one unit direction into ``out`` ((lmax+1)^2,), the convention of
+    `freqbrdf.sh.real_sh` (Y-up, no Condon-Shortley phase), by its recurrence."""
+    t = y
+    u = -z
+    v = x
+    out[0] = _INV_SQRT_4PI
+    if lmax >= 1:
+        out[2] = t * np.sqrt(3.0) * _INV_SQRT_4PI
+    for l in range(2, lmax + 1):
+        out[l * l + l] = a[l, 0] * (t * out[(l - 1) * (l - 1) + l - 1] - b[l, 0] * out[(l - 2) * (l - 2) + l - 2])
+    c_m = u  # Re (u + i v)^m
+    s_m = v  # Im (u + i v)^m
+    qmm = _INV_SQRT_4PI
+    for m in range(1, lmax + 1):
+        if m > 1:
+            c_new = u * c_m - v * s_m
+            s_m = s_m * u + v * c_m
+            c_m = c_new
+        qmm *= np.sqrt((2.0 * m + 1.0) / (2.0 * m))
+        q2 = _SQRT2 * qmm  # sqrt(2) q_m^m
+        out[m * m + 2 * m] = q2 * c_m
+        out[m * m] = q2 * s_m
+        if m + 1 <= lmax:
+            q1 = t * q2 * np.sqrt(2.0 * m + 3.0)
+            i = (m + 1) * (m + 1) + m + 1
+            out[i + m] = q1 * c_m
+            out[i - m] = q1 * s_m
+            for l in range(m + 2, lmax + 1):
+                q = a[l, m] * (t * q1 - b[l, m] * q2)
+                i = l * l + l
+                out[i + m] = q * c_m
+                out[i - m] = q * s_m
+                q2 = q1
+                q1 = q
+
+
+@numba.njit(parallel=True, cache=True)
+def _degree_sums(lg, rows, pairs, mirror, a, b, out):  # pragma: no cover - compiled
+    lmax = out.shape[1] - 1
+    n_ch = out.shape[2]
+    n = pairs.shape[0]
+    for blk in numba.prange((n + _BLOCK - 1) // _BLOCK):
+        y = np.empty((lmax + 1) * (lmax + 1))
+        for i in range(blk * _BLOCK, min(n, (blk + 1) * _BLOCK)):
+            p = pairs[i]
+            d = mirror[p]
+            norm = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            _real_sh_point(d[0] / norm, d[1] / norm, d[2] / norm, lmax, a, b, y)
+            r = rows[i]
+            for l in range(lmax + 1):
+                for c in range(n_ch):
+                    acc = 0.0
+                    for k in range(l * l, (l + 1) * (l + 1)):
+                        acc += lg[r, k, c] * y[k]
+                    out[p, l, c] = acc
+
+
+def degree_sums(
+    lg: np.ndarray, rows: np.ndarray, pairs: np.ndarray, mirror: np.ndarray, a: np.ndarray, b: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """``out[pairs[i], l, c] = sum_m lg[rows[i], lm, c] Y_lm(mirror[pairs[i]])`` for every degree l.
+
+    The per-degree light terms of the estimator (paper Eq. 11: the SH light
+    at each observation's mirror direction, split by degree so that a lobe
+    filter can weight them), with ``Y`` evaluated on the fly instead of
+    stored (at 256^2 texels x 24 views and l* = 20 a stored table is 0.8 GB).
+
+    Parameters
+    ----------
+    lg : numpy.ndarray
+        Shape ``(S, (lmax+1)**2, C)``, float32 or float64, any strides: SH
+        expansions (`freqbrdf.light.shadowed_light` returns a transposed view).
+    rows : numpy.ndarray
+        Shape ``(P,)``, int64: expansion of each evaluated pair.
+    pairs : numpy.ndarray
+        Shape ``(P,)``, int64: rows of ``out`` and ``mirror`` to evaluate.
+    mirror : numpy.ndarray
+        Shape ``(N, 3)``, float64: directions (normalised here).
+    a, b : numpy.ndarray
+        Shape ``(lmax+1, lmax+1)``: `freqbrdf.sh.recurrence_tables` of lmax.
+    out : numpy.ndarray
+        Shape ``(N, lmax+1, C)``, written in place at ``pairs``.
+    """
+    _degree_sums(lg, rows, pairs, mirror, a, b, out)
+
+
+@numba.njit(cache=True, inline="always")
+def _lobe(alpha, f, fd):  # pragma: no cover - compiled
+    """``f[l] = exp(-(alpha l)^2)`` and ``fd[l] = df/dalpha``, with one exp (``q^(l^2)``, ``q = exp(-alpha^2)``)."""
+    q = np.exp(-alpha * alpha)
+    step = q  # q^(2l - 1)
+    value = 1.0
+    for l in range(f.shape[0]):
+        f[l] = value
+        fd[l] = -2.0 * alpha * l * l * value
+        value *= step
+        step *= q * q
+
+
+@numba.njit(cache=True, inline="always")
+def _masking(alpha, tan2, masking):  # pragma: no cover - compiled
+    """Smith ``G1(theta_o)`` and ``dG1/dalpha`` (1 and 0 without masking)."""
+    if not masking:
+        return 1.0, 0.0
+    root = np.sqrt(1.0 + alpha * alpha * tan2)
+    g1 = 2.0 / (1.0 + root)
+    return g1, -g1 * g1 * alpha * tan2 / (2.0 * root)
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True)
+def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
+                      grad, loss, model):  # pragma: no cover - compiled
+    n_deg = light.shape[1]
+    n_tex = start.shape[0] - 1
+    write_model = model.shape[0] > 0
+    # blocks of texels, so that the scratch arrays are allocated once per block, not per texel
+    for blk in numba.prange((n_tex + _TEXELS - 1) // _TEXELS):
+        f = np.empty(n_deg)
+        fd = np.empty(n_deg)
+        work = np.empty((4, 3))  # per channel: sum of signs, of signs times the specular rise, Spec, dSpec
+        for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
+            r = x[s, 3]
+            m = x[s, 4]
+            alpha = max(r * r, alpha_min)
+            _lobe(alpha, f, fd)
+            work[:2] = 0.0
+            sum_d = 0.0
+            total = 0.0
+            for n in range(start[s], start[s + 1]):
+                c5 = schlick[n]
+                g1, dg1 = _masking(alpha, tan2[n], masking)
+                # six independent sums, the pair's terms read in memory order
+                s0 = s1 = s2 = d0 = d1 = d2 = 0.0
+                for l in range(n_deg):
+                    s0 += f[l] * light[n, l, 0]
+                    s1 += f[l] * light[n, l, 1]
+                    s2 += f[l] * light[n, l, 2]
+                    d0 += fd[l] * light[n, l, 0]
+                    d1 += fd[l] * light[n, l, 1]
+                    d2 += fd[l] * light[n, l, 2]
+                work[2, 0], work[2, 1], work[2, 2] = s0, s1, s2
+                work[3, 0], work[3, 1], work[3, 2] = d0, d1, d2
+                for c in range(3):
+                    spec = work[2, c]
+                    fresnel = (r0_dielectric * (1.0 - m) + m * x[s, c]) * (1.0 - c5) + c5
+                    value = (1.0 - m) * x[s, c] * e_pi[s, c] + fresnel * g1 * spec
+                    if write_model:
+                        model[n, c] = value
+                    res = value - radiance[n, c]
+                    g = np.sign(res)
+                    total += abs(res)
+                    work[0, c] += g
+                    work[1, c] += g * (1.0 - c5) * g1 * spec
+                    sum_d += g * fresnel * (spec * dg1 + g1 * work[3, c])
+            grad[s, 4] = 0.0
+            for c in range(3):
+                grad[s, c] = (1.0 - m) * e_pi[s, c] * work[0, c] + m * work[1, c]
+                grad[s, 4] += -x[s, c] * e_pi[s, c] * work[0, c] + (x[s, c] - r0_dielectric) * work[1, c]
+            grad[s, 3] = sum_d * 2.0 * max(r, np.sqrt(alpha_min))
+            loss[s] = total
+
+
+def l1_loss_gradient(
+    x: np.ndarray, start: np.ndarray, light: np.ndarray, radiance: np.ndarray, schlick: np.ndarray,
+    tan2: np.ndarray, e_pi: np.ndarray, masking: bool, alpha_min: float, r0_dielectric: float,
+    model: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-texel L1 data term of the mixed model and its gradient (paper Eqs. 11 and 13).
+
+    For the pairs ``n`` of texel ``s`` (``start[s] <= n < start[s+1]``):
+    ``B = (1 - m) base E / pi + F G1m sum_l exp(-(alpha l)^2) light[n, l]``,
+    ``F = R0 (1 - c5) + c5``, ``R0 = r0_dielectric (1 - m) + m base``,
+    ``alpha = max(r^2, alpha_min)`` (derivative ``2 max(r, sqrt(alpha_min))``,
+    as `freqbrdf.brdf.alpha_from_roughness`).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Shape ``(S, 5)``, float64: base colour RGB, roughness, metallic per texel.
+    start : numpy.ndarray
+        Shape ``(S + 1,)``, int64: first pair of each texel (pairs sorted by texel).
+    light : numpy.ndarray
+        Shape ``(N, L, 3)``: per-degree light terms of each pair.
+    radiance : numpy.ndarray
+        Shape ``(N, 3)``: observed B.
+    schlick, tan2 : numpy.ndarray
+        Shape ``(N,)``: ``(1 - cos theta_o)^5`` and ``tan^2 theta_o``.
+    e_pi : numpy.ndarray
+        Shape ``(S, 3)``, float64: irradiance over pi.
+    masking : bool
+        Apply ``G1(theta_o)``.
+    alpha_min, r0_dielectric : float
+        Clamp of alpha and the dielectric's normal reflectance.
+    model : numpy.ndarray, optional
+        Shape ``(N, 3)``, float64: filled with the model radiance.
+
+    Returns
+    -------
+    loss : numpy.ndarray
+        Shape ``(S,)``: ``sum_{n, c} |B - B_obs|`` per texel.
+    grad : numpy.ndarray
+        Shape ``(S, 5)``: its gradient (sign(0) = 0).
+    """
+    grad = np.empty((x.shape[0], 5))
+    loss = np.empty(x.shape[0])
+    _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, grad,
+                      loss, np.empty((0, 3)) if model is None else model)
+    return loss, grad
+
+
+@numba.njit(parallel=True, cache=True)
+def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, r_grid, m_grid,
+                 max_pairs, out):  # pragma: no cover - compiled
+    n_deg = light.shape[1]
+    n_tex = start.shape[0] - 1
+    for blk in numba.prange((n_tex + _TEXELS - 1) // _TEXELS):
+        f = np.empty(n_deg)
+        fd = np.empty(n_deg)
+        base = np.empty(3)
+        spec = np.empty((max_pairs, 3))
+        for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
+            lo = start[s]
+            k = start[s + 1] - lo
+            best = np.inf
+            for r in r_grid:
+                alpha = max(r * r, alpha_min)
+                _lobe(alpha, f, fd)
+                for i in range(k):
+                    g1 = _masking(alpha, tan2[lo + i], masking)[0]
+                    for c in range(3):
+                        acc = 0.0
+                        for l in range(n_deg):
+                            acc += f[l] * light[lo + i, l, c]
+                        spec[i, c] = g1 * acc
+                for m in m_grid:
+                    # B = base a + b per channel: linear in the base colour once (r, m) are fixed
+                    for c in range(3):
+                        num = 0.0
+                        den = 0.0
+                        for i in range(k):
+                            rise = spec[i, c] * (1.0 - schlick[lo + i])
+                            a = (1.0 - m) * e_pi[s, c] + m * rise
+                            b = r0_dielectric * (1.0 - m) * rise + schlick[lo + i] * spec[i, c]
+                            num += a * (radiance[lo + i, c] - b)
+                            den += a * a
+                        base[c] = min(1.0, max(0.0, num / max(den, 1e-12)))
+                    cost = 0.0
+                    for i in range(k):
+                        for c in range(3):
+                            rise = spec[i, c] * (1.0 - schlick[lo + i])
+                            a = (1.0 - m) * e_pi[s, c] + m * rise
+                            b = r0_dielectric * (1.0 - m) * rise + schlick[lo + i] * spec[i, c]
+                            cost += abs(a * base[c] + b - radiance[lo + i, c])
+                    if cost < best:
+                        best = cost
+                        out[s, 0] = base[0]
+                        out[s, 1] = base[1]
+                        out[s, 2] = base[2]
+                        out[s, 3] = r
+                        out[s, 4] = m
+
+
+def grid_search(
+    start: np.ndarray, light: np.ndarray, radiance: np.ndarray, schlick: np.ndarray, tan2: np.ndarray,
+    e_pi: np.ndarray, masking: bool, alpha_min: float, r0_dielectric: float, roughness: np.ndarray,
+    metallic: np.ndarray,
+) -> np.ndarray:
+    """Per texel, the (roughness, metallic) grid point of least L1 data term, with its best base colour.
+
+    The model of `l1_loss_gradient` is linear in the base colour once
+    roughness and metallic are fixed, so each grid point's base colour is
+    the least-squares one per channel, clipped to [0, 1]; grid points are
+    ranked by their L1 cost (ties: the first, roughness outer).
+
+    Parameters
+    ----------
+    start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric
+        As for `l1_loss_gradient`.
+    roughness, metallic : numpy.ndarray
+        1-D grids, float64.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(S, 5)``, float64: base colour RGB, roughness, metallic.
+    """
+    out = np.zeros((start.shape[0] - 1, 5))
+    _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
+                 np.asarray(roughness, dtype=np.float64), np.asarray(metallic, dtype=np.float64),
+                 int(np.diff(start).max(initial=0)), out)
+    return out
