@@ -34,8 +34,14 @@ def relight_envs(env, method):
 
 
 # Every relit image set (object, env, poses, method, relight_env): synthetic captures
-# only, since a real capture has no test views under other environments.
+# only, since a real capture has no test views under other environments. Rule
+# relight writes those of one estimate into one directory, relit_dir(...)/{relight_env}.
 RELIGHTS = [(o, e, POSES, m, r) for o, e in SYNTHETIC_CAPTURES for m in METHODS for r in relight_envs(e, m)]
+
+
+def relit_dir(o, e, p, m):
+    """Output of rule relight for one estimate: a subdirectory per relighting environment."""
+    return f"results/relight/{o}/{e}/{p}/{m}"
 
 wildcard_constraints:
     object="|".join(OBJECTS),
@@ -43,7 +49,6 @@ wildcard_constraints:
     split="|".join(SPLITS),
     poses="gt|colmap",
     method=wildcard_pattern(list(METHOD_REGISTRY)),
-    relight_env="|".join(ENVS),
 
 
 LIBRARY = Path(workflow.basedir) / "workflow" / "freqbrdf"
@@ -106,7 +111,7 @@ def final_outputs():
     outputs += [f"results/observations/{o}/{e}/{POSES}" for o, e in CAPTURES]
     outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for o, e in CAPTURES for m in METHODS]
     outputs += [f"results/entropy/{o}/{e}/{POSES}" for o, e in CAPTURES]
-    outputs += [f"results/relight/{o}/{e}/{p}/{m}/{r}" for o, e, p, m, r in RELIGHTS]
+    outputs += list(dict.fromkeys(relit_dir(o, e, p, m) for o, e, p, m, _ in RELIGHTS))
     outputs.append("results/tables/metrics.csv")
     outputs += report_outputs()  # rules/report.smk: tables, claims, per-capture figures
     return outputs

@@ -31,7 +31,7 @@ rule metrics:
         truth=[object_files(o)[name] for o in SYNTHETIC_OBJECTS for name in TEXTURES],
         observations=[f"results/observations/{o}/{e}/{POSES}" for o, e in SYNTHETIC_CAPTURES],
         entropy=[f"results/entropy/{o}/{e}/{POSES}" for o, e in SYNTHETIC_CAPTURES],
-        relit=[f"results/relight/{o}/{e}/{p}/{m}/{r}" for o, e, p, m, r in RELIGHTS],
+        relit=[relit_dir(o, e, p, m) for o, e, p, m, _ in RELIGHTS],  # each holds {relight_env}/
         references=[f"results/captures/{o}/{r}/test" for o, r in METRIC_REFERENCES],
         benchmarks=[f for o, e, p, m in METRIC_TIMINGS for f in method_benchmarks(o, e, p, m)],
         extraction=[f"results/benchmarks/extract_observations/{o}_{e}_{POSES}.tsv" for o, e in SYNTHETIC_CAPTURES],

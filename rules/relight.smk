@@ -6,27 +6,32 @@ RELIGHT_KEYS = ["resolution", "spp", "max_depth", "fov_deg"]
 
 rule relight:
     """One method's textures rendered from the held-out test views of an object
-    under another environment, exactly as the reference test views were rendered."""
+    under every environment it is relit under (relight_envs), exactly as the
+    reference test views were rendered. One job per estimate: Mitsuba starts once
+    and its compiled kernels serve every environment."""
     input:
         estimate="results/estimates/{object}/{env}/{poses}/{method}",
         mesh="results/objects/{object}/mesh.ply",
-        envmap="results/envs/{relight_env}.exr",
-        test="results/captures/{object}/{relight_env}/test",  # cameras; the reference images
+        envmaps=lambda w: [f"results/envs/{r}.exr" for r in relight_envs(w.env, w.method)],
+        # cameras and reference images, one test capture per environment
+        tests=lambda w: [f"results/captures/{w.object}/{r}/test" for r in relight_envs(w.env, w.method)],
         code=library("relight"),
     output:
-        directory("results/relight/{object}/{env}/{poses}/{method}/{relight_env}"),
+        directory("results/relight/{object}/{env}/{poses}/{method}"),
     params:
         render={key: config["render"][key] for key in RELIGHT_KEYS},
-        # The reference renders' seed: same sample sequence, so a perfect estimate
+        relight_envs=lambda w: relight_envs(w.env, w.method),
+        # The reference renders' seeds: same sample sequence, so a perfect estimate
         # reproduces the reference image noise and all.
-        seed=lambda wildcards: derived_seed(config["seed"], "render", wildcards.object, wildcards.relight_env, "test"),
+        seeds=lambda w: [derived_seed(config["seed"], "render", w.object, r, "test")
+                         for r in relight_envs(w.env, w.method)],
     threads: 2
     resources:
         mem_mb=4000,
     log:
-        "results/logs/relight/{object}_{env}_{poses}_{method}_{relight_env}.log",
+        "results/logs/relight/{object}_{env}_{poses}_{method}.log",
     benchmark:
-        "results/benchmarks/relight/{object}_{env}_{poses}_{method}_{relight_env}.tsv"
+        "results/benchmarks/relight/{object}_{env}_{poses}_{method}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
     script:

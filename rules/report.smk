@@ -93,7 +93,7 @@ rule relight_figure:
     """The first test view relit with every method's textures beside the ground-truth
     render, under each held-out environment, with PSNR-H from metrics.csv."""
     input:
-        relit=lambda w: [f"results/relight/{w.object}/{w.env}/{w.poses}/{m}/{r}" for m, r in capture_relights(w)],
+        relit=lambda w: [relit_dir(w.object, w.env, w.poses, m) for m, _ in capture_relights(w)],
         references=lambda w: [f"results/captures/{w.object}/{r}/test" for r in relight_figure_envs(w)],
         metrics="results/tables/metrics.csv",
         code=library("report_figures"),

@@ -74,7 +74,7 @@ def relight_rows(smk, log):
     rows = []
     for (obj, env, poses, method, relight_env), relit in keyed(smk.params.relights, smk.input.relit).items():
         names, refs, masks = reference((obj, relight_env))
-        preds = [read_exr(f"{relit}/images/{name}.exr") for name in names]
+        preds = [read_exr(f"{relit}/{relight_env}/images/{name}.exr") for name in names]
         scores = relight_scores(preds, refs, masks, clip=settings["hdr_clip"], normalise=settings["hdr_normalise"])
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env=relight_env)
         rows += [key | dict(metric=k, value=v) for k, v in scores.items()]

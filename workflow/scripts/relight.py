@@ -1,4 +1,4 @@
-"""Rule relight: one method's textures rendered from the held-out test views under another environment."""
+"""Rule relight: one method's textures rendered from the held-out test views under every relighting environment."""
 
 import time
 from pathlib import Path
@@ -15,27 +15,31 @@ from freqbrdf.render import relit_views
 def main(smk, log):
     mi = setup_mitsuba(threads=smk.threads)
     render = smk.params.render
-    test = Path(smk.input.test)
-    cameras = cameras_from_json(read_json(test / "cameras.json"), test / "cameras.json")
-    if (cameras.width, cameras.height) != (render["resolution"], render["resolution"]):
-        raise ValueError(f"{test}/cameras.json: views are {cameras.width}x{cameras.height}, "
-                         f"render.resolution is {render['resolution']}")
     textures = read_svbrdf(smk.input.estimate)
-    # Exactly the reference renders' scene (render_capture): same mesh, environment,
-    # integrator, film, sample count and seed, so that a perfect estimate
-    # reproduces the reference image and the score carries no Monte Carlo noise floor.
-    relit = relit_views(mi, smk.input.mesh, textures, read_exr(smk.input.envmap), cameras,
-                        fov_x_deg=render["fov_deg"], spp=render["spp"], max_depth=render["max_depth"],
-                        seed=smk.params.seed)
+    envs = smk.params.relight_envs
     start = time.perf_counter()
     with atomic_directory(smk.output[0]) as tmp:
-        previews = []
-        for name, image in zip(cameras.names, relit):
-            write_exr(tmp / "images" / f"{name}.exr", image)
-            if len(previews) < 8:  # the reference capture's preview.png shows the same first 8 views
-                previews.append(image)
-            log.info("view %s relit, %d views in total (%.1f s elapsed)", name, len(cameras), time.perf_counter() - start)
-        contact_sheet(tmp / "preview.png", previews)
+        for i, (env, envmap, test, seed) in enumerate(zip(envs, smk.input.envmaps, smk.input.tests, smk.params.seeds)):
+            test = Path(test)
+            cameras = cameras_from_json(read_json(test / "cameras.json"), test / "cameras.json")
+            if (cameras.width, cameras.height) != (render["resolution"], render["resolution"]):
+                raise ValueError(f"{test}/cameras.json: views are {cameras.width}x{cameras.height}, "
+                                 f"render.resolution is {render['resolution']}")
+            # Exactly the reference renders' scene (render_capture): same mesh, environment,
+            # integrator, film, sample count and seed, so that a perfect estimate
+            # reproduces the reference image and the score carries no Monte Carlo noise floor.
+            relit = relit_views(mi, smk.input.mesh, textures, read_exr(envmap), cameras,
+                                fov_x_deg=render["fov_deg"], spp=render["spp"], max_depth=render["max_depth"],
+                                seed=seed)
+            previews = []
+            for name, image in zip(cameras.names, relit):
+                write_exr(tmp / env / "images" / f"{name}.exr", image)
+                if len(previews) < 8:  # the reference capture's preview.png shows the same first 8 views
+                    previews.append(image)
+            contact_sheet(tmp / env / "preview.png", previews)
+            elapsed = time.perf_counter() - start
+            log.info("relit under %s: %d views (environment %d of %d, %.1f s elapsed, about %.0f s left)",
+                     env, len(cameras), i + 1, len(envs), elapsed, elapsed / (i + 1) * (len(envs) - i - 1))
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)

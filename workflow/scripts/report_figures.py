@@ -46,7 +46,7 @@ def relight(smk, log):
     references = {r: first_view(Path(d)) for r, d in zip(smk.params.references, smk.input.references)}
     relit = {}
     for (method, relight_env), directory in zip(smk.params.relights, smk.input.relit):
-        relit.setdefault(relight_env, {})[method] = first_view(Path(directory))
+        relit.setdefault(relight_env, {})[method] = first_view(Path(directory) / relight_env)
     relight_figure(smk.output[0], references, relit, scores,
                    f"{w.object} captured under {w.env}: first test view relit under held-out environments")
     log.info("relit views of %d method(s) under %s", len({m for m, _ in smk.params.relights}), ", ".join(references))
