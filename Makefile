@@ -12,7 +12,7 @@ CORES ?= 2
 $(BIN)/.installed: workflow/pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e "./workflow[test]"
+	$(BIN)/pip install --quiet -e "./workflow[workflow,test]"
 	touch $@
 
 run: $(BIN)/.installed

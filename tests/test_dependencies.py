@@ -64,3 +64,45 @@ def test_a_missing_module_is_named(tmp_path: Path) -> None:
     script.write_text("from freqbrdf.nonexistent import thing\n")
     with pytest.raises(FileNotFoundError, match="imports freqbrdf.nonexistent"):
         script_modules(script, PACKAGE)
+
+
+def third_party_imports(files: list[Path]) -> set[str]:
+    """Top-level names of every non-standard-library module imported anywhere in ``files``
+    (function-level imports included)."""
+    import ast
+    import sys
+
+    names = set()
+    for path in files:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names.update(alias.name.split(".")[0] for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names.add(node.module.split(".")[0])
+    return {n for n in names if n not in sys.stdlib_module_names and n not in ("freqbrdf", "__future__")}
+
+
+def declared(extra: str | None = None) -> set[str]:
+    """Distribution names (lower case) pinned in workflow/pyproject.toml's dependencies or an extra."""
+    import tomllib
+
+    project = tomllib.loads((REPO / "workflow" / "pyproject.toml").read_text())["project"]
+    pins = project["dependencies"] if extra is None else project["optional-dependencies"][extra]
+    for pin in pins:
+        assert re.fullmatch(r"[A-Za-z0-9_.\-]+==[0-9][A-Za-z0-9_.]*", pin), f"pyproject: {pin!r} is not pinned with =="
+    return {pin.split("==")[0].lower() for pin in pins}
+
+
+def test_every_imported_package_is_declared() -> None:
+    from importlib.metadata import packages_distributions
+
+    distributions = packages_distributions()
+    library = third_party_imports(sorted(PACKAGE.glob("*.py")) + SCRIPTS)
+    missing = sorted(
+        name for name in library
+        if not {d.lower() for d in distributions.get(name, [name])} & (declared() | declared("workflow"))
+    )
+    assert not missing, f"imported but not declared in workflow/pyproject.toml: {missing}"
+    # Snakemake is the workflow's (extra "workflow"): the library imports it only inside
+    # check_config, which runs in the Snakefile, so freqbrdf installs beside any Snakemake
+    assert "snakemake" not in declared() and "snakemake" in declared("workflow")

@@ -366,7 +366,7 @@ def total_variation(mi: ModuleType, tensors) -> object:
 
 
 def _resident_mb() -> float:
-    import psutil  # a dependency of Snakemake, hence always installed with the pipeline
+    import psutil
 
     return psutil.Process().memory_info().rss / 2**20
 
