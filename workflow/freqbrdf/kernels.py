@@ -17,7 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["set_threads", "degree_sums", "l1_loss_gradient", "grid_search"]
+__all__ = ["set_threads", "degree_sums", "shadowing_factors", "l1_loss_gradient", "grid_search"]
 
 _INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
 _SQRT2 = np.sqrt(2.0)
@@ -117,6 +117,40 @@ def degree_sums(
         Shape ``(N, lmax+1, C)``, written in place at ``pairs``.
     """
     _degree_sums(lg, rows, pairs, mirror, a, b, out)
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True)
+def _shadowing_factors(normals, directions, alpha, out):  # pragma: no cover - compiled
+    one = np.float32(1.0)
+    for t in numba.prange(normals.shape[0]):
+        nx, ny, nz = normals[t, 0], normals[t, 1], normals[t, 2]
+        a2 = np.float32(alpha[t] * alpha[t])
+        for q in range(directions.shape[1]):
+            c = nx * directions[0, q] + ny * directions[1, q] + nz * directions[2, q]
+            cc = max(c, np.float32(1e-6))
+            g = np.float32(2.0) / (one + np.sqrt(one + a2 * (one / (cc * cc) - one)))
+            out[t, q] = g if c > 0 else np.float32(0.0)
+
+
+def shadowing_factors(normals: np.ndarray, directions: np.ndarray, alpha: np.ndarray, out: np.ndarray) -> None:
+    """Smith ``G1(n . w, alpha)`` of every texel normal and direction, 0 below the horizon.
+
+    ``G1 = 2 / (1 + sqrt(1 + alpha^2 tan^2 theta))`` with ``cos theta = n . w``
+    (paper section 4.2, the shadowing of the incoming light); ``alpha = 0``
+    gives the bare horizon (1 above, 0 below). Float32, as the products it feeds.
+
+    Parameters
+    ----------
+    normals : numpy.ndarray
+        Shape ``(T, 3)``, float32, unit.
+    directions : numpy.ndarray
+        Shape ``(3, Q)``, float32, unit (one direction per column).
+    alpha : numpy.ndarray
+        Shape ``(T,)``, float64: GGX width per texel.
+    out : numpy.ndarray
+        Shape ``(T, Q)``, float32, written in place.
+    """
+    _shadowing_factors(normals, directions, alpha, out)
 
 
 @numba.njit(cache=True, inline="always")

@@ -23,11 +23,11 @@ All directions and coefficients are in the world frame (+Y up, see
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from .kernels import set_threads, shadowing_factors
 from .observations import sample_equirect
 from .sh import angles_to_directions, equirect_directions, equirect_solid_angles, project_equirect, real_sh, sh_degrees
 
@@ -160,28 +160,6 @@ def _ring_tables(theta: np.ndarray, phi: np.ndarray, weighted: np.ndarray, lmax:
     return azimuthal.astype(np.float32), polar.astype(np.float32)
 
 
-def _shadowing_matrix(cos: np.ndarray, alpha: np.ndarray | None) -> np.ndarray:
-    """``G1(cos, alpha)`` above the horizon and 0 below, float32, computed in place.
-
-    ``cos`` (t, Q) float32 is overwritten; ``alpha`` (t,) or None (``G1 = 1``).
-    """
-    up = cos > 0.0
-    if alpha is None:
-        return up.astype(np.float32)
-    # G1 = 2 / (1 + sqrt(1 + alpha^2 (1 / cos^2 - 1)))
-    np.maximum(cos, np.float32(1e-6), out=cos)
-    np.square(cos, out=cos)
-    np.reciprocal(cos, out=cos)
-    cos -= 1.0
-    cos *= np.square(alpha).astype(np.float32)[:, None]
-    cos += 1.0
-    np.sqrt(cos, out=cos)
-    cos += 1.0
-    np.divide(np.float32(2.0), cos, out=cos)
-    cos *= up
-    return cos
-
-
 def shadowed_light(
     quadrature: LightQuadrature, normals: np.ndarray, alpha: np.ndarray | None = None, workers: int = 1
 ) -> np.ndarray:
@@ -202,12 +180,13 @@ def shadowed_light(
     alpha : numpy.ndarray, optional
         Shape ``(T,)``, GGX width per texel.
     workers : int
-        Threads (blocks of texels run concurrently).
+        Threads of the shadowing factors (the matrix products use BLAS's own).
 
     Returns
     -------
     numpy.ndarray
-        Shape ``(T, (lmax+1)**2, C)``, float32, world-frame coefficients.
+        Shape ``(T, (lmax+1)**2, C)``, float32, world-frame coefficients
+        (a transposed view: texels are the fastest axis in memory).
     """
     n = np.asarray(normals, dtype=np.float64)
     if n.ndim != 2 or n.shape[1] != 3:
@@ -224,28 +203,22 @@ def shadowed_light(
     # matrix that BLAS takes as it is, so no intermediate is copied or transposed
     azimuthal = np.ascontiguousarray(q.azimuthal.transpose(0, 2, 1))  # (n, C*M, 2n)
     polar = np.ascontiguousarray(q.polar.transpose(0, 2, 1))  # (M, L, n)
-    dirs = q.directions.astype(np.float32)
+    dirs = np.ascontiguousarray(q.directions.T, dtype=np.float32)
     normals32 = n.astype(np.float32)
+    alpha = np.zeros(n.shape[0]) if alpha is None else alpha  # alpha 0: G1 = 1 above the horizon
     out = np.empty((n_ch, n_coef, n.shape[0]), np.float32)
-
-    def block(a: int) -> None:
+    g = np.empty((min(n.shape[0], _TEXEL_CHUNK), dirs.shape[1]), np.float32)
+    set_threads(workers)
+    for a in range(0, n.shape[0], _TEXEL_CHUNK):
         b = min(n.shape[0], a + _TEXEL_CHUNK)
-        g = _shadowing_matrix(normals32[a:b] @ dirs.T, None if alpha is None else alpha[a:b])  # (t, Q)
+        shadowing_factors(normals32[a:b], dirs, alpha[a:b], g[: b - a])
         # sum over each ring's azimuths, then over rings (LightQuadrature): about 7 times
         # fewer operations than one product with every node's Y_lm
-        rings = np.matmul(azimuthal, g.reshape(b - a, q.n_rings, -1).transpose(1, 2, 0))  # (n, C*M, t)
+        rings = np.matmul(azimuthal, g[: b - a].reshape(b - a, q.n_rings, -1).transpose(1, 2, 0))  # (n, C*M, t)
         per_ring = rings.reshape(q.n_rings, n_ch, n_orders, b - a).transpose(1, 2, 0, 3)  # (C, M, n, t)
         per_degree = np.matmul(polar, per_ring)  # (C, M, L, t)
         for l in range(q.lmax + 1):  # flat indices l^2 .. l^2 + 2l are the orders m = -l .. l
             out[:, l * l : (l + 1) * (l + 1), a:b] = per_degree[:, q.lmax - l : q.lmax + l + 1, l]
-
-    starts = range(0, n.shape[0], _TEXEL_CHUNK)
-    if workers > 1 and len(starts) > 1:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(block, starts))
-    else:
-        for a in starts:
-            block(a)
     return out.transpose(2, 1, 0)
 
 
