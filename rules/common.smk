@@ -109,4 +109,5 @@ def final_outputs():
     outputs += [f"results/relight/{o}/{e}/{p}/{m}/{r}" for o, e, p, m, r in RELIGHTS]
     outputs.append("results/tables/metrics.csv")
     outputs += report_outputs()  # rules/report.smk: tables, claims, per-capture figures
+    outputs += gltf_outputs()  # rules/export.smk: .glb files, .hdr environments, viewer pages
     return outputs
