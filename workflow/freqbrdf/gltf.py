@@ -256,8 +256,7 @@ def glb_bytes(mesh: Mesh, materials: Sequence[GltfMaterial]) -> bytes:
         gltf_materials.append(g.Material(name=m.name, pbrMetallicRoughness=g.PbrMetallicRoughness(
             baseColorTexture=g.TextureInfo(index=len(textures) - 2), baseColorFactor=[1.0, 1.0, 1.0, 1.0],
             metallicRoughnessTexture=g.TextureInfo(index=len(textures) - 1), metallicFactor=1.0, roughnessFactor=1.0)))
-        # Unnamed: three.js would otherwise give the node, which shares the mesh's name, a suffix.
-        meshes.append(g.Mesh(primitives=[g.Primitive(
+        meshes.append(g.Mesh(name=m.name, primitives=[g.Primitive(
             attributes=g.Attributes(POSITION=0, NORMAL=1, TEXCOORD_0=2), indices=3,
             material=len(gltf_materials) - 1, mode=_TRIANGLES)]))
         nodes.append(g.Node(name=m.name, mesh=len(meshes) - 1))

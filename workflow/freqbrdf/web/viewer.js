@@ -147,7 +147,9 @@
     overlayTexture.flipY = false; // glTF's uv convention, as the model's own textures
     overlayTexture.colorSpace = THREE.SRGBColorSpace;
     for (const panel of panels) {
-      const node = gltf.scene.getObjectByName(panel.name);
+      // three.js sanitises object names; the node's name as written is kept in userData.
+      let node;
+      gltf.scene.traverse((object) => { if (node === undefined && object.userData.name === panel.name) node = object; });
       if (node === undefined) throw new Error("the model has no node " + panel.name);
       panel.scene.add(node);
       if (panel.overlay) {
