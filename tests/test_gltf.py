@@ -133,6 +133,10 @@ def test_bad_inputs_fail_naming_the_file_or_value(tmp_path, textures):
         read_glb(bad)
     with pytest.raises(ValueError, match=r"missing\.glb: cannot read"):
         read_glb(tmp_path / "missing.glb")
+    good = glb_bytes(make_mesh("sphere"), [GltfMaterial.from_textures("x", textures)])
+    (tmp_path / "index.glb").write_bytes(good.replace(b'"source":1', b'"source":7', 1))  # no image 7
+    with pytest.raises(ValueError, match=r"index\.glb: malformed glTF document \(IndexError"):
+        read_glb(tmp_path / "index.glb")
     with pytest.raises(ValueError, match="roughness texture is"):
         material_images({**textures, "roughness": textures["roughness"][:16]})
     with pytest.raises(ValueError, match=r"material 'x' baseColorTexture: not a readable PNG"):

@@ -306,6 +306,31 @@ def _image_bytes(gltf, blob: bytes, texture_info, path: Path, what: str) -> byte
     return blob[(view.byteOffset or 0):(view.byteOffset or 0) + view.byteLength]
 
 
+def _nodes(gltf, blob: bytes, path: Path) -> tuple[tuple[int, int, int, int], list[GltfMaterial]]:
+    """The accessors (positions, normals, uvs, indices) all nodes share, and each node's material."""
+    geometry, materials = None, []
+    for node in gltf.nodes:
+        if node.mesh is None or len(gltf.meshes[node.mesh].primitives) != 1:
+            raise ValueError(f"{path}: node {node.name!r} does not draw exactly one primitive")
+        primitive = gltf.meshes[node.mesh].primitives[0]
+        a = primitive.attributes
+        layout = (a.POSITION, a.NORMAL, a.TEXCOORD_0, primitive.indices)
+        if None in layout or primitive.mode not in (None, _TRIANGLES) or primitive.material is None:
+            raise ValueError(f"{path}: node {node.name!r} lacks positions, normals, uvs, indices or a material, "
+                             "or does not draw triangles")
+        if geometry is None:
+            geometry = layout
+        elif layout != geometry:
+            raise ValueError(f"{path}: node {node.name!r} draws other geometry than node {gltf.nodes[0].name!r}")
+        pbr = gltf.materials[primitive.material].pbrMetallicRoughness
+        if pbr is None:
+            raise ValueError(f"{path}: material of node {node.name!r} is not metallic-roughness")
+        materials.append(GltfMaterial(
+            node.name or "", _image_bytes(gltf, blob, pbr.baseColorTexture, path, "baseColorTexture"),
+            _image_bytes(gltf, blob, pbr.metallicRoughnessTexture, path, "metallicRoughnessTexture")))
+    return geometry, materials
+
+
 def read_glb(path: str | os.PathLike) -> GltfScene:
     """Read a ``.glb`` in the layout :func:`glb_bytes` writes: every node draws the same geometry.
 
@@ -337,27 +362,11 @@ def read_glb(path: str | os.PathLike) -> GltfScene:
     blob = gltf.binary_blob()
     if blob is None or not gltf.nodes:
         raise ValueError(f"{path}: no binary chunk or no nodes")
-    geometry, materials = None, []
-    for node in gltf.nodes:
-        if node.mesh is None or len(gltf.meshes[node.mesh].primitives) != 1:
-            raise ValueError(f"{path}: node {node.name!r} does not draw exactly one primitive")
-        primitive = gltf.meshes[node.mesh].primitives[0]
-        a = primitive.attributes
-        layout = (a.POSITION, a.NORMAL, a.TEXCOORD_0, primitive.indices)
-        if None in layout or primitive.mode not in (None, _TRIANGLES) or primitive.material is None:
-            raise ValueError(f"{path}: node {node.name!r} lacks positions, normals, uvs, indices or a material, "
-                             "or does not draw triangles")
-        if geometry is None:
-            geometry = layout
-        elif layout != geometry:
-            raise ValueError(f"{path}: node {node.name!r} draws other geometry than node {gltf.nodes[0].name!r}")
-        pbr = gltf.materials[primitive.material].pbrMetallicRoughness
-        if pbr is None:
-            raise ValueError(f"{path}: material of node {node.name!r} is not metallic-roughness")
-        materials.append(GltfMaterial(
-            node.name or "", _image_bytes(gltf, blob, pbr.baseColorTexture, path, "baseColorTexture"),
-            _image_bytes(gltf, blob, pbr.metallicRoughnessTexture, path, "metallicRoughnessTexture")))
-    positions, normals, uvs, indices = (_accessor_array(gltf, blob, i, path) for i in geometry)
+    try:
+        geometry, materials = _nodes(gltf, blob, path)
+        positions, normals, uvs, indices = (_accessor_array(gltf, blob, i, path) for i in geometry)
+    except (IndexError, TypeError, AttributeError) as exc:  # an index or field the document lacks
+        raise ValueError(f"{path}: malformed glTF document ({type(exc).__name__}: {exc})") from None
     if indices.size % 3:
         raise ValueError(f"{path}: {indices.size} indices is not a whole number of triangles")
     try:
