@@ -39,6 +39,7 @@ include: "rules/views.smk"
 include: "rules/relight.smk"
 include: "rules/evaluate.smk"
 include: "rules/report.smk"
+include: "rules/export.smk"
 
 
 rule all:

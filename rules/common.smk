@@ -114,4 +114,5 @@ def final_outputs():
     outputs += list(dict.fromkeys(relit_dir(o, e, p, m) for o, e, p, m, _ in RELIGHTS))
     outputs.append("results/tables/metrics.csv")
     outputs += report_outputs()  # rules/report.smk: tables, claims, per-capture figures
+    outputs += gltf_outputs()  # rules/export.smk: .glb files, .hdr environments, viewer pages
     return outputs

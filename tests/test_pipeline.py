@@ -313,6 +313,30 @@ def test_report_figures_are_written_per_capture(run):
     assert not (run / "results/figures/sphere_copy/studio_copy/gt/relight.png").exists()  # no relighting: real
 
 
+def test_gltf_files_environments_and_viewers_are_written_per_capture(repo, run):
+    from freqbrdf.artefacts import read_svbrdf
+    from freqbrdf.gltf import read_glb
+    from freqbrdf.colour import to_srgb
+    from freqbrdf.rgbe import read_hdr
+
+    truth = read_glb(run / "results/gltf/sphere/truth.glb")
+    exr = read_svbrdf(run / "results/objects/sphere")
+    back = truth.material("truth").textures()
+    assert np.abs(to_srgb(back["base_color"]) - to_srgb(exr.base_color)).max() <= 0.5 / 255 + 1e-6
+    assert np.abs(back["roughness"] - exr.roughness).max() <= 0.5 / 255 + 1e-6
+    assert np.array_equal(truth.mesh.faces, read_ply(run / "results/objects/sphere/mesh.ply").faces)
+    for capture in ("sphere/studio", "sphere_copy/studio_copy"):
+        for method in tiny_methods(repo):
+            scene = read_glb(run / f"results/gltf/{capture}/gt/{method}.glb")
+            assert [m.name for m in scene.materials] == [method]
+        page = (run / f"results/viewer/{capture}/gt/viewer.html").read_text()
+        assert page.count('"overlay": true') == len(tiny_methods(repo))  # one panel per method
+        assert ('"name": "truth"' in page) == (capture == "sphere/studio")  # ground truth: synthetic only
+    for env in ("studio", "museum", "sunny", "overcast"):
+        hdr, exr_env = read_hdr(run / f"results/envs/{env}.hdr"), read_exr(run / f"results/envs/{env}.exr")
+        assert np.all(np.abs(hdr - exr_env) <= exr_env.max(axis=2, keepdims=True) / 256 + 1e-30)
+
+
 def test_changing_a_metric_setting_reruns_only_metrics_and_report_rules(repo, run, tmp_path):
     changed = tmp_path / "metric.yaml"
     changed.write_text("evaluate:\n  hdr_clip: 2.0\n")
@@ -331,7 +355,8 @@ def test_report_builds_and_a_headless_browser_shows_tables_and_figures(repo, run
     snakemake(repo, run, "--report", str(report))
     html = report.read_text()
     for result in ("results/tables/tables.html", "results/tables/claims.html",
-                   "results/figures/sphere/studio/gt/maps.png", "results/figures/sphere/studio/gt/relight.png"):
+                   "results/figures/sphere/studio/gt/maps.png", "results/figures/sphere/studio/gt/relight.png",
+                   "results/viewer/sphere/studio/gt/viewer.html"):
         assert result in html
     shots = tmp_path / "shots"
     screenshot = subprocess.run([sys.executable, str(repo / "bench/report_screenshot.py"), str(report), "--out", str(shots)],

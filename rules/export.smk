@@ -1,0 +1,107 @@
+# Exports people can use outside the pipeline (issue 20): every estimate and
+# ground truth as binary glTF, the environment maps as Radiance .hdr, and per
+# capture an HTML page showing them side by side under any environment.
+from freqbrdf.viewer import WEB_ASSETS, WEB_DIR
+
+TRUTH_GLTF = "truth"  # node and material name of the ground truth in .glb files and the viewer
+
+
+def gltf_outputs():
+    """Every .glb, .hdr and viewer page the export rules write (targets of rule all)."""
+    outputs = [f"results/gltf/{o}/{TRUTH_GLTF}.glb" for o in SYNTHETIC_OBJECTS]
+    outputs += [f"results/gltf/{o}/{e}/{POSES}/{m}.glb" for o, e in CAPTURES for m in METHODS]
+    outputs += expand("results/envs/{env}.hdr", env=ENVS)
+    outputs += [f"results/viewer/{o}/{e}/{POSES}/viewer.html" for o, e in CAPTURES]
+    return outputs
+
+
+def viewer_panels(wildcards):
+    """The viewer's panels: the ground truth (synthetic captures only), then every method."""
+    panels = [] if wildcards.object in REAL_CAPTURES else [{"name": TRUTH_GLTF, "label": "Ground truth", "overlay": False}]
+    return panels + [{"name": m, "label": METHOD_REGISTRY[m].label, "overlay": True} for m in METHODS]
+
+
+rule export_gltf:
+    """One method's estimate on the capture's mesh as binary glTF 2.0 (metallic-roughness material,
+    base colour sRGB-encoded, roughness in G and metallic in B, 8 bits)."""
+    input:
+        estimate="results/estimates/{object}/{env}/{poses}/{method}",
+        mesh=mesh_file,
+        code=library("export_gltf"),
+    output:
+        "results/gltf/{object}/{env}/{poses}/{method}.glb",
+    params:
+        name=lambda wildcards: wildcards.method,
+    log:
+        "results/logs/export_gltf/{object}_{env}_{poses}_{method}.log",
+    benchmark:
+        "results/benchmarks/export_gltf/{object}_{env}_{poses}_{method}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/export_gltf.py"
+
+
+rule export_truth_gltf:
+    """A synthetic object's ground-truth textures on its mesh as binary glTF, as rule export_gltf."""
+    input:
+        **object_files("{object}"),
+        code=library("export_gltf"),
+    output:
+        f"results/gltf/{{object}}/{TRUTH_GLTF}.glb",
+    params:
+        name=TRUTH_GLTF,
+    log:
+        "results/logs/export_truth_gltf/{object}.log",
+    benchmark:
+        "results/benchmarks/export_truth_gltf/{object}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/export_gltf.py"
+
+
+rule export_env:
+    """An environment map as Radiance .hdr (RGBE, Mitsuba's equirectangular layout)."""
+    input:
+        envmap="results/envs/{env}.exr",
+        code=library("export_env"),
+    output:
+        "results/envs/{env}.hdr",
+    log:
+        "results/logs/export_env/{env}.log",
+    benchmark:
+        "results/benchmarks/export_env/{env}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/export_env.py"
+
+
+rule viewer:
+    """The ground truth and every method's .glb side by side in one self-contained HTML page (three.js,
+    inlined): one camera for all panels, any benchmark environment, the entropy as an overlay."""
+    input:
+        truth=lambda w: [] if w.object in REAL_CAPTURES else [f"results/gltf/{w.object}/{TRUTH_GLTF}.glb"],
+        estimates=lambda w: [f"results/gltf/{w.object}/{w.env}/{w.poses}/{m}.glb" for m in METHODS],
+        envs=expand("results/envs/{env}.hdr", env=ENVS),
+        entropy="results/entropy/{object}/{env}/{poses}",
+        cameras=pose_dir,  # the page opens on the capture's first view
+        web=[str(WEB_DIR / asset) for asset in WEB_ASSETS],
+        code=library("make_viewer"),
+    output:
+        report("results/viewer/{object}/{env}/{poses}/viewer.html", category="Captures",
+               subcategory="{object} / {env}", caption="../report/capture_viewer.rst",
+               labels={"capture": "{object} / {env}", "figure": "3D viewer"}),
+    params:
+        panels=viewer_panels,
+        envs=ENVS,
+        title=lambda w: f"FreqBRDF: {w.object} / {w.env} ({w.poses} poses)",
+    log:
+        "results/logs/viewer/{object}_{env}_{poses}.log",
+    benchmark:
+        "results/benchmarks/viewer/{object}_{env}_{poses}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/make_viewer.py"

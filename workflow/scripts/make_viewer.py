@@ -1,0 +1,39 @@
+"""Rule viewer: a capture's ground truth and estimates side by side in one self-contained HTML page."""
+
+from pathlib import Path
+
+import numpy as np
+
+from freqbrdf.artefacts import read_entropy
+from freqbrdf.cameras import cameras_from_json
+from freqbrdf.gltf import read_glb
+from freqbrdf.io import atomic_path, read_json
+from freqbrdf.logs import run_script
+from freqbrdf.viewer import Panel, same_mesh, viewer_html
+
+
+def main(smk, log):
+    panels = [Panel(**panel) for panel in smk.params.panels]
+    paths = [*smk.input.truth, *smk.input.estimates]
+    if len(paths) != len(panels):
+        raise ValueError(f"{len(paths)} .glb inputs for {len(panels)} panels {[p.name for p in panels]}")
+    scenes = [read_glb(path) for path in paths]
+    for path, scene, panel in zip(paths, scenes, panels):
+        if [m.name for m in scene.materials] != [panel.name]:
+            raise ValueError(f"{path}: materials {[m.name for m in scene.materials]}, expected one named {panel.name!r}")
+        if not same_mesh(scene.mesh, scenes[0].mesh):
+            raise ValueError(f"{path}: its mesh differs from that of {paths[0]}; the panels share one mesh")
+    cameras_path = Path(smk.input.cameras) / "cameras.json"
+    cameras = cameras_from_json(read_json(cameras_path), cameras_path)
+    # The page opens on the capture's first view; the panels are square, so the
+    # vertical field of view of that view is kept.
+    fov_deg = float(np.degrees(2.0 * np.arctan(0.5 * cameras.height / cameras.K[0, 1, 1])))
+    envs = {name: Path(path).read_bytes() for name, path in zip(smk.params.envs, smk.input.envs, strict=True)}
+    html = viewer_html(smk.params.title, scenes[0].mesh, [s.materials[0] for s in scenes], panels, envs,
+                       read_entropy(smk.input.entropy).atlas, cameras.centres[0], fov_deg)
+    with atomic_path(smk.output[0]) as tmp:
+        tmp.write_text(html, encoding="utf-8")
+    log.info("%s: %d panels, %d environments, %.1f MB", smk.output[0], len(panels), len(envs), len(html) / 1e6)
+
+
+run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
