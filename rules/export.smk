@@ -90,9 +90,9 @@ rule viewer:
         web=[str(WEB_DIR / asset) for asset in WEB_ASSETS],
         code=library("make_viewer"),
     output:
-        report("results/viewer/{object}/{env}/{poses}/viewer.html", category="Captures",
-               subcategory="{object} / {env}", caption="../report/capture_viewer.rst",
-               labels={"capture": "{object} / {env}", "figure": "3D viewer"}),
+        # Linked from the maps figure's caption, not embedded: a single-file report would
+        # carry 7 MB per page as data: addresses, which Chromium does not show above 2 MB.
+        "results/viewer/{object}/{env}/{poses}/viewer.html",
     params:
         panels=viewer_panels,
         envs=ENVS,
