@@ -9,13 +9,16 @@ the diffuse term is the same in every view of the texel, so only the
 view-dependent variation of ``B`` carries the orientation, and it must follow
 the band-limited environment ``L'`` along the mirror directions ``w_r,k``.
 
-For each candidate rotation the check regresses, per texel, the observed
-radiance on ``L'(w_r,k)`` with an intercept and a non-negative slope (a
-constant Fresnel and a per-texel ``K_s``) and scores the fraction of the
-view-dependent variance explained. Rotations are cheap in the spherical-harmonic
+For each candidate rotation the check fits, per patch of neighbouring texels,
+``B = a E(n) + b L'(w_r)`` with non-negative ``a`` and ``b`` (a patch's
+``K_d``, and its ``K_s F``, taken as constant) and scores the fraction of the
+within-patch variance of ``B`` explained. Patches rather than single texels,
+because a sparse capture sees most texels in one or two views only: across a
+patch the normals differ, so the irradiance ``E(n)`` carries the orientation
+as well as the mirror term. Rotations are cheap in the spherical-harmonic
 domain (paper section 3.1): turning a map by ``delta`` about +Y mixes only the
 ``(l, m)`` and ``(l, -m)`` coefficients, by the angle ``m delta``, so the SH
-basis is evaluated at the mirror directions once for all rotations.
+basis is evaluated at the normals and mirror directions once for all rotations.
 """
 
 from __future__ import annotations
@@ -67,54 +70,83 @@ def rotate_azimuth(coeffs: np.ndarray, angle: float | np.ndarray) -> np.ndarray:
     return out if np.ndim(angle) else out[0]
 
 
-def explained_variance(radiance: np.ndarray, light: np.ndarray, group: np.ndarray) -> np.ndarray:
-    """Fraction of the within-group variance of ``radiance`` a per-group fit ``a + b light`` (b >= 0) explains.
+def explained_variance(radiance: np.ndarray, irradiance: np.ndarray, light: np.ndarray,
+                       group: np.ndarray) -> np.ndarray:
+    """Fraction of the within-group variance of ``radiance`` a per-group fit ``a E + b L`` (a, b >= 0) explains.
 
     Parameters
     ----------
     radiance : ndarray, shape (P,)
         Observed radiance of P (texel, view) pairs.
-    light : ndarray, shape (P, S)
-        Predicted light along each pair's mirror direction, for S candidates.
+    irradiance, light : ndarray, shape (P, S)
+        Predicted irradiance at each pair's normal and light along its mirror
+        direction, for S candidates.
     group : ndarray, shape (P,), int
-        Texel of each pair, in ``0..G-1``.
+        Patch of each pair, in ``0..G-1``.
 
     Returns
     -------
     ndarray, shape (S,)
-        In [0, 1]; 0 where no group varies.
+        At most 1; below 0 where the fit is worse than a constant per group.
     """
-    n_groups = int(group.max()) + 1
-    count = np.bincount(group, minlength=n_groups).astype(np.float64)
-    count[count == 0] = 1.0
-    b = radiance - (np.bincount(group, radiance, n_groups) / count)[group]
-    total = float(b @ b)
+    n = int(group.max()) + 1
+    count = np.maximum(np.bincount(group, minlength=n), 1).astype(np.float64)
+    centred = radiance - (np.bincount(group, radiance, n) / count)[group]
+    total = float(centred @ centred)
     if total <= 0.0:
         return np.zeros(light.shape[1])
+    s_bb = np.bincount(group, radiance * radiance, n)
     explained = np.empty(light.shape[1])
     for s in range(light.shape[1]):
-        l = light[:, s] - (np.bincount(group, light[:, s], n_groups) / count)[group]
-        cov = np.bincount(group, b * l, n_groups)
-        var = np.bincount(group, l * l, n_groups)
-        gain = np.where(var > 0.0, np.maximum(cov, 0.0) ** 2 / np.where(var > 0.0, var, 1.0), 0.0)
-        explained[s] = gain.sum() / total
+        e, l = irradiance[:, s], light[:, s]
+        s_ee, s_ll, s_el = (np.bincount(group, x * y, n) for x, y in ((e, e), (l, l), (e, l)))
+        s_eb, s_lb = np.bincount(group, e * radiance, n), np.bincount(group, l * radiance, n)
+        # Non-negative least squares in two unknowns: the best of the free fit
+        # (when both come out >= 0) and each regressor alone.
+        det = s_ee * s_ll - s_el**2
+        safe = np.where(det > 1e-12 * np.maximum(s_ee * s_ll, 1e-300), det, np.inf)
+        a, b = (s_ll * s_eb - s_el * s_lb) / safe, (s_ee * s_lb - s_el * s_eb) / safe
+        both = np.where((a >= 0) & (b >= 0) & np.isfinite(safe), s_bb - a * s_eb - b * s_lb, np.inf)
+        only_e = s_bb - np.maximum(s_eb, 0.0) ** 2 / np.maximum(s_ee, 1e-300)
+        only_l = s_bb - np.maximum(s_lb, 0.0) ** 2 / np.maximum(s_ll, 1e-300)
+        residual = np.minimum(np.minimum(both, only_e), np.minimum(only_l, s_bb))
+        explained[s] = 1.0 - residual.sum() / total
     return explained
 
 
-def azimuth_scores(radiance: np.ndarray, mirror: np.ndarray, group: np.ndarray, env_coeffs: np.ndarray,
-                   shifts: np.ndarray, width: int) -> np.ndarray:
+def irradiance_coeffs(coeffs: np.ndarray) -> np.ndarray:
+    """Irradiance SH coefficients (degrees 0-2) from radiance ones: the clamped-cosine
+    convolution, ``A_0 = pi``, ``A_1 = 2 pi / 3``, ``A_2 = pi / 4`` (Ramamoorthi and
+    Hanrahan 2001, the ``E(p)`` of paper Eq. 8).
+
+    Parameters
+    ----------
+    coeffs : ndarray, shape (n, ...), n >= 9
+
+    Returns
+    -------
+    ndarray, shape (9, ...)
+    """
+    gain = np.repeat([np.pi, 2.0 * np.pi / 3.0, np.pi / 4.0], [1, 3, 5])
+    return coeffs[:9] * gain.reshape((-1,) + (1,) * (np.ndim(coeffs) - 1))
+
+
+def azimuth_scores(radiance: np.ndarray, normal: np.ndarray, mirror: np.ndarray, group: np.ndarray,
+                   env_coeffs: np.ndarray, a_prime: float, shifts: np.ndarray, width: int) -> np.ndarray:
     """Explained variance for the map turned by each of ``shifts`` columns.
 
     Parameters
     ----------
     radiance : ndarray, shape (P,)
         Observed luminance of P (texel, view) pairs.
-    mirror : ndarray, shape (P, 3)
-        World mirror directions of the pairs (Y-up).
+    normal, mirror : ndarray, shape (P, 3)
+        World normals and mirror directions of the pairs (Y-up).
     group : ndarray, shape (P,), int
-        Texel of each pair.
+        Patch of each pair.
     env_coeffs : ndarray, shape (n,)
-        Band-limited SH coefficients of the map's luminance.
+        SH coefficients of the map's luminance (``lmax >= 2``).
+    a_prime : float
+        Band limit of the mirror term (:func:`band_limited_coeffs`).
     shifts : ndarray, shape (S,), int
         Rotations as ``np.roll`` column shifts of a map ``width`` columns wide.
     width : int
@@ -124,13 +156,15 @@ def azimuth_scores(radiance: np.ndarray, mirror: np.ndarray, group: np.ndarray, 
     -------
     ndarray, shape (S,)
     """
-    basis = real_sh(mirror, int(round(np.sqrt(len(env_coeffs)))) - 1)  # (P, n)
-    rotated = rotate_azimuth(env_coeffs, 2.0 * np.pi * np.asarray(shifts, dtype=np.float64) / width)  # (S, n)
-    return explained_variance(radiance, basis @ rotated.T, group)
+    angles = 2.0 * np.pi * np.asarray(shifts, dtype=np.float64) / width
+    rotated = rotate_azimuth(env_coeffs, angles)  # (S, n)
+    light = real_sh(mirror, int(round(np.sqrt(len(env_coeffs)))) - 1) @ band_limited_coeffs(rotated.T, a_prime)
+    irradiance = real_sh(normal, 2) @ irradiance_coeffs(rotated.T)
+    return explained_variance(radiance, irradiance, light, group)
 
 
-def best_azimuth(radiance: np.ndarray, mirror: np.ndarray, group: np.ndarray, env_coeffs: np.ndarray,
-                 width: int) -> dict:
+def best_azimuth(radiance: np.ndarray, normal: np.ndarray, mirror: np.ndarray, group: np.ndarray,
+                 env_coeffs: np.ndarray, a_prime: float, width: int) -> dict:
     """The best column shift of the map, and whether the given orientation is clearly worse.
 
     A coarse pass scores :data:`COARSE_STEPS` rotations, then every column
@@ -138,7 +172,7 @@ def best_azimuth(radiance: np.ndarray, mirror: np.ndarray, group: np.ndarray, en
 
     Parameters
     ----------
-    radiance, mirror, group, env_coeffs, width
+    radiance, normal, mirror, group, env_coeffs, a_prime, width
         As in :func:`azimuth_scores`.
 
     Returns
@@ -152,10 +186,10 @@ def best_azimuth(radiance: np.ndarray, mirror: np.ndarray, group: np.ndarray, en
     """
     step = max(1, width // COARSE_STEPS)
     coarse = np.arange(0, width, step)
-    coarse_scores = azimuth_scores(radiance, mirror, group, env_coeffs, coarse, width)
+    coarse_scores = azimuth_scores(radiance, normal, mirror, group, env_coeffs, a_prime, coarse, width)
     centre = int(coarse[np.argmax(coarse_scores)])
     fine = np.array([(centre + d) % width for d in range(-step + 1, step) if d != 0], dtype=np.int64)
-    fine_scores = azimuth_scores(radiance, mirror, group, env_coeffs, fine, width) if len(fine) else np.zeros(0)
+    fine_scores = azimuth_scores(radiance, normal, mirror, group, env_coeffs, a_prime, fine, width) if len(fine) else np.zeros(0)
     shifts = np.concatenate([coarse, fine])
     scores = np.concatenate([coarse_scores, fine_scores])
     best = int(np.argmax(scores))
