@@ -60,6 +60,7 @@ rule env_orientation:
     output:
         envmap="results/imports/{object}/envmap.exr",
         scores="results/imports/{object}/env_orientation.tsv",
+        rotation="results/imports/{object}/env_rotation.json",
     params:
         align=lambda wildcards: REAL_CAPTURES[wildcards.object]["align_env"],
         source=lambda wildcards: REAL_CAPTURES[wildcards.object]["dir"],
@@ -117,6 +118,57 @@ rule score_real_capture:
         "../workflow/scripts/score_real_capture.py"
 
 
+rule relight_real:
+    """One method's textures rendered from a real capture's test views, each under
+    its own environment (test_env/ of the capture, turned like envmap.exr), or
+    under the capture's environment where the capture gives none."""
+    input:
+        estimate="results/estimates/{object}/{env}/{poses}/{method}",
+        mesh="results/imports/{object}/mesh.ply",
+        test="results/imports/{object}/test",
+        envmap="results/imports/{object}/envmap.exr",
+        rotation="results/imports/{object}/env_rotation.json",
+        code=library("relight_real"),
+    output:
+        directory("results/relight_real/{object}/{env}/{poses}/{method}"),
+    params:
+        spp=config["render"]["spp"],
+        max_depth=config["render"]["max_depth"],
+        seed=lambda wildcards: derived_seed(config["seed"], "relight_real", wildcards.object),
+    threads: 2
+    resources:
+        mem_mb=4000,
+    log:
+        "results/logs/relight_real/{object}_{env}_{poses}_{method}.log",
+    benchmark:
+        "results/benchmarks/relight_real/{object}_{env}_{poses}_{method}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/relight_real.py"
+
+
+rule score_real_relight:
+    """PSNR-H, PSNR-L, SSIM and MSE of every method's relit test views of a real
+    capture against its test photographs, in the columns of metrics.csv
+    (relight_env: test_views)."""
+    input:
+        relit=lambda w: [f"results/relight_real/{w.object}/{w.env}/{w.poses}/{m}" for m in METHODS],
+        test="results/imports/{object}/test",
+        code=library("score_real_relight"),
+    output:
+        "results/tables/real/{object}_{env}_{poses}_relight.csv",
+    params:
+        methods=METHODS,
+        metrics={key: config["evaluate"][key] for key in ("mask_min_coverage", "hdr_clip", "hdr_normalise")},
+    log:
+        "results/logs/score_real_relight/{object}_{env}_{poses}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/score_real_relight.py"
+
+
 def real_capture_outputs():
     """Every output of the real captures alone (targets of rule real_captures)."""
     outputs = []
@@ -125,6 +177,7 @@ def real_capture_outputs():
         outputs += [f"results/imports/{o}/env_orientation.tsv", f"results/observations/{o}/{e}/{POSES}"]
         outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for m in METHODS]
         outputs += [f"results/entropy/{o}/{e}/{POSES}", f"results/figures/{o}/{e}/{POSES}/maps.png"]
+        outputs.append(f"results/tables/real/{o}_{e}_{POSES}_relight.csv")
         if "textures" in capture:
             outputs.append(f"results/tables/real/{o}_{e}_{POSES}.csv")
     return outputs
@@ -132,7 +185,8 @@ def real_capture_outputs():
 
 rule real_captures:
     """Only the real captures (config `real_captures`): import, orientation check,
-    observations, every method's estimates, entropy, the maps figure and, with
-    ground truth, their scores; nothing of the synthetic benchmark."""
+    observations, every method's estimates, entropy, the maps figure, the relit
+    test views' scores and, with ground truth, the parameter scores; nothing of
+    the synthetic benchmark."""
     input:
         real_capture_outputs(),

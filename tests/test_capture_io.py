@@ -222,3 +222,18 @@ def test_ground_truth_textures_are_checked(tmp_path):
         import_textures(truth, out, 16)
     import_textures(truth, out, 8)
     assert all(path.is_file() for path in out.values())
+
+
+def test_turn_envmap_rolls_whole_columns_and_fov_needs_a_centred_pinhole():
+    from freqbrdf.capture_io import pinhole_fov_deg, turn_envmap
+
+    env = np.arange(2 * 8 * 3, dtype=np.float32).reshape(2, 8, 3)
+    np.testing.assert_array_equal(turn_envmap(env, 90.0), np.roll(env, 2, axis=1))
+    np.testing.assert_array_equal(turn_envmap(turn_envmap(env, 90.0), 270.0), env)
+    assert pinhole_fov_deg(_cameras(), "c.json") == pytest.approx(40.0)
+    shifted = _cameras()
+    K = shifted.K.copy()
+    K[:, 0, 2] += 3.0
+    off_centre = Cameras(K=K, world_to_camera=shifted.world_to_camera, width=40, height=30, names=shifted.names)
+    with pytest.raises(ValueError, match="c.json: needs one square-pixel focal length and a centred principal point"):
+        pinhole_fov_deg(off_centre, "c.json")

@@ -449,7 +449,7 @@ def orb(repo, tmp_path_factory):
 def test_a_real_capture_runs_on_its_own(orb):
     jobs = planned_jobs(orb["stderr"])  # a real run reports its jobs on stderr
     assert {"import_capture", "import_textures", "env_orientation", "extract_observations", "score_real_capture",
-            "real_captures"} <= set(jobs)
+            "relight_real", "score_real_relight", "real_captures"} <= set(jobs)
     assert not {"render_capture", "build_object", "build_env", "metrics"} & set(jobs)
 
 
@@ -476,6 +476,24 @@ def test_z_up_capture_with_a_turned_environment_matches_the_original(orb):
         assert after == pytest.approx(before, rel=0.05)
     assert (real.metric == "pearson_entropy_error").any()
     assert (work / "figures/orb/orb_env/gt/maps.png").is_file()
+
+
+def test_real_test_views_are_relit_under_their_own_turned_maps_and_scored(orb):
+    import pandas as pd
+
+    from freqbrdf.io import read_png
+
+    work = orb["workdir"] / "results"
+    for name in ("0000", "0001"):
+        # The background shows the environment itself: the view's own map, turned back by
+        # the rotation found for envmap.exr, must show what the photograph shows.
+        relit = read_exr(work / f"relight_real/orb/orb_env/gt/freq/images/{name}.exr")
+        photo = read_exr(work / f"imports/orb/test/images/{name}.exr")
+        background = read_png(work / f"imports/orb/test/masks/{name}.png") == 0
+        assert np.abs(relit[background] - photo[background]).mean() < 0.05 * photo[background].mean()
+    table = pd.read_csv(work / "tables/real/orb_orb_env_gt_relight.csv", keep_default_na=False)
+    assert len(table) == 2 * 4 and (table.relight_env == "test_views").all()
+    assert set(table.metric) == {"psnr_h", "psnr_l", "ssim", "mse"} and np.isfinite(table.value).all()
 
 
 def test_a_changed_file_inside_a_capture_is_re_imported(repo, orb):

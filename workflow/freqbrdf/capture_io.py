@@ -64,15 +64,45 @@ def blender_transforms(cameras: Cameras, split: str) -> dict:
         If the cameras do not share one focal length with a centred principal
         point, which ``camera_angle_x`` cannot express.
     """
-    K = cameras.K
-    if not (np.allclose(K[:, 0, 0], K[0, 0, 0]) and np.allclose(K[:, 1, 1], K[:, 0, 0])
-            and np.allclose(K[:, 0, 2], cameras.width / 2) and np.allclose(K[:, 1, 2], cameras.height / 2)):
-        raise ValueError("blender layout needs one square-pixel focal length and a centred principal point")
+    fov_x = math.radians(pinhole_fov_deg(cameras, "blender layout"))
     frames = []
     for k in range(len(cameras)):
         c2w_gl = np.linalg.inv(cameras.world_to_camera[k]) @ _GL_FROM_CV
         frames.append({"file_path": f"./{split}/{k:04d}", "transform_matrix": c2w_gl.tolist()})
-    return {"camera_angle_x": 2.0 * math.atan(cameras.width / (2.0 * K[0, 0, 0])), "frames": frames}
+    return {"camera_angle_x": fov_x, "frames": frames}
+
+
+def pinhole_fov_deg(cameras: Cameras, source: str | os.PathLike) -> float:
+    """Horizontal field of view (degrees) of cameras that one fov can describe.
+
+    Raises
+    ------
+    ValueError
+        Naming ``source`` unless every camera has the same square-pixel focal
+        length and a centred principal point (what ``camera_angle_x`` and
+        Mitsuba's ``fov`` express).
+    """
+    K = cameras.K
+    if not (np.allclose(K[:, 0, 0], K[0, 0, 0]) and np.allclose(K[:, 1, 1], K[:, 0, 0])
+            and np.allclose(K[:, 0, 2], cameras.width / 2) and np.allclose(K[:, 1, 2], cameras.height / 2)):
+        raise ValueError(f"{source}: needs one square-pixel focal length and a centred principal point")
+    return math.degrees(2.0 * math.atan(cameras.width / (2.0 * K[0, 0, 0])))
+
+
+def turn_envmap(envmap: np.ndarray, degrees: float) -> np.ndarray:
+    """An equirect map turned about the up axis by whole columns (lossless).
+
+    Parameters
+    ----------
+    envmap : ndarray, shape (H, W, C)
+    degrees : float
+        Rotation toward increasing azimuth; rounded to a whole column.
+
+    Returns
+    -------
+    ndarray, shape (H, W, C)
+    """
+    return np.roll(envmap, int(round(degrees / 360.0 * envmap.shape[1])), axis=1)
 
 
 def cameras_from_blender(transforms: dict, width: int, height: int, source: str | Path,

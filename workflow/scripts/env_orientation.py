@@ -6,7 +6,8 @@ import numpy as np
 
 from freqbrdf.cameras import cameras_from_json
 from freqbrdf.colour import LUMINANCE
-from freqbrdf.io import atomic_path, read_exr, read_json, read_views, write_exr
+from freqbrdf.capture_io import turn_envmap
+from freqbrdf.io import atomic_path, read_exr, read_json, read_views, write_exr, write_json
 from freqbrdf.logs import run_script
 from freqbrdf.meshes import read_ply
 from freqbrdf.mitsuba_setup import setup_mitsuba
@@ -53,6 +54,7 @@ def main(smk, log):
     if not len(radiance):  # extract_observations stops on this capture, naming the unusable views
         log.warning("no (texel, view) pair is observed: orientation not checked")
         write_exr(smk.output.envmap, given)
+        write_json(smk.output.rotation, {"degrees": 0.0})
         with atomic_path(smk.output.scores) as tmp:
             tmp.write_text("shift_columns\tdegrees\texplained\n")
         return
@@ -70,7 +72,9 @@ def main(smk, log):
                f"of the within-patch variance, as given {result['given']:.3f} ({len(radiance)} pairs)")
     if smk.params.align:
         log.info("align_env: %s; applied", summary)
-        write_exr(smk.output.envmap, np.roll(given, result["shift"], axis=1))
+        write_exr(smk.output.envmap, turn_envmap(given, result["degrees"]))
+        # The test views' own maps come in the same convention: relight_real turns them alike.
+        write_json(smk.output.rotation, {"degrees": result["degrees"]})
         return
     if result["clearly_worse"]:
         log.warning("%s/envmap.exr may be wrongly oriented: %s; set align_env: true for this capture to apply it",
@@ -78,6 +82,7 @@ def main(smk, log):
     else:
         log.info("orientation as given is kept: %s", summary)
     write_exr(smk.output.envmap, given)
+    write_json(smk.output.rotation, {"degrees": 0.0})
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
