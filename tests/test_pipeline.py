@@ -317,7 +317,9 @@ def test_changing_a_metric_setting_reruns_only_metrics_and_report_rules(repo, ru
     changed = tmp_path / "metric.yaml"
     changed.write_text("evaluate:\n  hdr_clip: 2.0\n")
     jobs = planned_jobs(snakemake(repo, run, "-n", extra_config=[changed]).stdout)
-    assert jobs == {"metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "all": 1}
+    # score_real_relight: the imported sphere_copy's relit test views, scored with the same settings
+    assert jobs == {"metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "score_real_relight": 1,
+                    "all": 1}
 
 
 def _colour_count(image, rgb) -> int:
@@ -438,7 +440,8 @@ def orb(repo, tmp_path_factory):
                 "textures": str(original / "results/objects/sphere")},
     }
     (tmp / "orb.yaml").write_text(yaml.safe_dump(config))
-    config["real_captures"] = {"nans": {"dir": str(nan_source), "env": "nan_env", "up_axis": "z"}}
+    config["real_captures"] = {"nans": {"dir": str(nan_source), "env": "nan_env", "up_axis": "z"},
+                               "turned": {"dir": str(source), "env": "turned_env", "up_axis": "z"}}
     (tmp / "nans.yaml").write_text(yaml.safe_dump(config))
     workdir = tmp / "work"
     result = snakemake(repo, workdir, "real_captures", base=tmp / "orb.yaml")
@@ -521,3 +524,12 @@ def test_a_capture_with_no_usable_pixel_stops_at_extraction_naming_the_views(rep
     views = ", ".join(f"{k:04d}" for k in range(12))
     assert f"no (texel, view) pair is observed; every pixel is NaN/Inf: {views}" in failed.stderr
     assert not (orb["workdir"] / "results/observations/nans").exists()
+
+
+def test_a_wrongly_oriented_map_is_reported_with_the_best_rotation(repo, orb):
+    # The same capture without align_env: the map is kept, with a warning naming the rotation.
+    run = snakemake(repo, orb["workdir"], "results/imports/turned/envmap.exr", base=orb["nans"])
+    assert f"{orb['source']}/envmap.exr may be wrongly oriented: turned by 270.0 degrees" in run.stderr
+    assert "set align_env: true" in run.stderr
+    work = orb["workdir"] / "results/imports/turned"
+    np.testing.assert_array_equal(read_exr(work / "envmap.exr"), read_exr(orb["source"] / "envmap.exr"))
