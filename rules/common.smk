@@ -34,8 +34,8 @@ def relight_envs(env, method):
 
 
 # Every relit image set (object, env, poses, method, relight_env): synthetic captures
-# only, since a real capture has no test views under other environments. Rule
-# relight writes those of one estimate into one directory, relit_dir(...)/{relight_env}.
+# only; a real capture's test views are relit under their own maps (rule relight_real).
+# Rule relight writes those of one estimate into one directory, relit_dir(...)/{relight_env}.
 RELIGHTS = [(o, e, POSES, m, r) for o, e in SYNTHETIC_CAPTURES for m in METHODS for r in relight_envs(e, m)]
 
 
