@@ -8,7 +8,7 @@ from freqbrdf.dependencies import script_modules
 from freqbrdf.methods import FREQUENCY_RULES, METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
 
 SYNTHETIC_OBJECTS = list(config["objects"])
-REAL_CAPTURES = config["real_captures"]  # name -> {dir, env}: captures imported from disk
+REAL_CAPTURES = config["real_captures"]  # name -> {dir, env, up_axis, ...}: captures imported from disk
 OBJECTS = SYNTHETIC_OBJECTS + list(REAL_CAPTURES)
 ENVS = list(config["envs"])
 CAPTURE_ENVS = list(config["capture_envs"])
@@ -34,8 +34,8 @@ def relight_envs(env, method):
 
 
 # Every relit image set (object, env, poses, method, relight_env): synthetic captures
-# only, since a real capture has no test views under other environments. Rule
-# relight writes those of one estimate into one directory, relit_dir(...)/{relight_env}.
+# only; a real capture's test views are relit under their own maps (rule relight_real).
+# Rule relight writes those of one estimate into one directory, relit_dir(...)/{relight_env}.
 RELIGHTS = [(o, e, POSES, m, r) for o, e in SYNTHETIC_CAPTURES for m in METHODS for r in relight_envs(e, m)]
 
 
@@ -66,6 +66,16 @@ def object_files(name):
     """Ground-truth files of one object, keyed like the build_object outputs."""
     base = f"results/objects/{name}"
     return {"mesh": f"{base}/mesh.ply"} | {texture: f"{base}/{texture}.exr" for texture in TEXTURES}
+
+
+def truth_files(wildcards):
+    """Ground-truth texture files of an object, in TEXTURES order: procedural, imported
+    with a real capture (config real_captures.{name}.textures), or none."""
+    if wildcards.object in REAL_CAPTURES:
+        if "textures" not in REAL_CAPTURES[wildcards.object]:
+            return []
+        return [f"results/imports/{wildcards.object}/truth/{name}.exr" for name in TEXTURES]
+    return [object_files(wildcards.object)[name] for name in TEXTURES]
 
 
 def capture_dir(wildcards, split):
@@ -112,6 +122,7 @@ def final_outputs():
     outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for o, e in CAPTURES for m in METHODS]
     outputs += [f"results/entropy/{o}/{e}/{POSES}" for o, e in CAPTURES]
     outputs += list(dict.fromkeys(relit_dir(o, e, p, m) for o, e, p, m, _ in RELIGHTS))
+    outputs += real_capture_outputs()  # rules/exchange.smk
     outputs.append("results/tables/metrics.csv")
     outputs += report_outputs()  # rules/report.smk: tables, claims, per-capture figures
     outputs += gltf_outputs()  # rules/export.smk: .glb files, .hdr environments, viewer pages

@@ -1,3 +1,6 @@
+from freqbrdf.capture_io import source_checksum
+
+
 rule export_capture:
     """A rendered capture (both splits, mesh, environment) in the NeRF-Blender /
     Stanford-ORB layout, for other tools, or to test the import path."""
@@ -19,7 +22,8 @@ rule export_capture:
 
 rule import_capture:
     """A capture on disk in the NeRF-Blender / Stanford-ORB layout (config
-    `real_captures`), converted to the native layout the estimators read."""
+    `real_captures`), every file read and checked, converted to the native layout
+    the estimators read (Y-up world, OpenCV cameras, the pipeline's PLY)."""
     input:
         source=lambda wildcards: REAL_CAPTURES[wildcards.object]["dir"],
         code=library("import_capture"),
@@ -27,10 +31,162 @@ rule import_capture:
         train=directory("results/imports/{object}/train"),
         test=directory("results/imports/{object}/test"),
         mesh="results/imports/{object}/mesh.ply",
-        envmap="results/imports/{object}/envmap.exr",
+        envmap="results/imports/{object}/envmap_given.exr",
+    params:
+        # Snakemake sees only the source directory's timestamp, which a file
+        # rewritten inside it leaves alone; a changed checksum reruns the import
+        # (the params rerun trigger). Evaluated when the job runs, so a source
+        # written by this workflow (config/tiny.yaml) is hashed once it exists.
+        checksum=lambda wildcards: source_checksum(REAL_CAPTURES[wildcards.object]["dir"]),
+        up_axis=lambda wildcards: REAL_CAPTURES[wildcards.object]["up_axis"],
+        camera=lambda wildcards: REAL_CAPTURES[wildcards.object]["camera"],
     log:
         "results/logs/import_capture/{object}.log",
     conda:
         "../envs/freqbrdf.yaml"
     script:
         "../workflow/scripts/import_capture.py"
+
+
+rule env_orientation:
+    """Scores the imported environment map over rotations about the up axis against
+    the training views (freqbrdf.orientation); warns, naming the best rotation, when
+    the given one is clearly worse, and applies the best one with `align_env: true`."""
+    input:
+        capture="results/imports/{object}/train",
+        mesh="results/imports/{object}/mesh.ply",
+        envmap="results/imports/{object}/envmap_given.exr",
+        code=library("env_orientation"),
+    output:
+        envmap="results/imports/{object}/envmap.exr",
+        scores="results/imports/{object}/env_orientation.tsv",
+        rotation="results/imports/{object}/env_rotation.json",
+    params:
+        align=lambda wildcards: REAL_CAPTURES[wildcards.object]["align_env"],
+        source=lambda wildcards: REAL_CAPTURES[wildcards.object]["dir"],
+        settings=config["observations"],
+        lmax=config["sh"]["lmax"],
+        resolution=config["textures"]["resolution"],
+        seed=lambda wildcards: derived_seed(config["seed"], "env_orientation", wildcards.object),
+    threads: 2
+    log:
+        "results/logs/env_orientation/{object}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/env_orientation.py"
+
+
+rule import_textures:
+    """Ground-truth textures of a real capture (config `real_captures.{name}.textures`),
+    checked against the estimates' atlas size."""
+    input:
+        source=lambda wildcards: REAL_CAPTURES[wildcards.object]["textures"],
+        code=library("import_textures"),
+    output:
+        **{name: f"results/imports/{{object}}/truth/{name}.exr" for name in TEXTURES},
+    params:
+        checksum=lambda wildcards: source_checksum(REAL_CAPTURES[wildcards.object]["textures"]),
+        resolution=config["textures"]["resolution"],
+    log:
+        "results/logs/import_textures/{object}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/import_textures.py"
+
+
+rule score_real_capture:
+    """Parameter MSE and entropy-error correlation of every method on a real capture
+    with ground-truth textures, in the columns of results/tables/metrics.csv."""
+    input:
+        estimates=lambda w: [f"results/estimates/{w.object}/{w.env}/{w.poses}/{m}" for m in METHODS],
+        truth=truth_files,
+        observations="results/observations/{object}/{env}/{poses}",
+        entropy="results/entropy/{object}/{env}/{poses}",
+        code=library("score_real_capture"),
+    output:
+        "results/tables/real/{object}_{env}_{poses}.csv",
+    params:
+        methods=METHODS,
+        entropy_methods=[m for m in METHODS if METHOD_REGISTRY[m].entropy_scored],
+    log:
+        "results/logs/score_real_capture/{object}_{env}_{poses}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/score_real_capture.py"
+
+
+rule relight_real:
+    """One method's textures rendered from a real capture's test views, each under
+    its own environment (test_env/ of the capture, turned like envmap.exr), or
+    under the capture's environment where the capture gives none."""
+    input:
+        estimate="results/estimates/{object}/{env}/{poses}/{method}",
+        mesh="results/imports/{object}/mesh.ply",
+        test="results/imports/{object}/test",
+        envmap="results/imports/{object}/envmap.exr",
+        rotation="results/imports/{object}/env_rotation.json",
+        code=library("relight_real"),
+    output:
+        directory("results/relight_real/{object}/{env}/{poses}/{method}"),
+    params:
+        spp=config["render"]["spp"],
+        max_depth=config["render"]["max_depth"],
+        seed=lambda wildcards: derived_seed(config["seed"], "relight_real", wildcards.object),
+    threads: 2
+    resources:
+        mem_mb=4000,
+    log:
+        "results/logs/relight_real/{object}_{env}_{poses}_{method}.log",
+    benchmark:
+        "results/benchmarks/relight_real/{object}_{env}_{poses}_{method}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/relight_real.py"
+
+
+rule score_real_relight:
+    """PSNR-H, PSNR-L, SSIM and MSE of every method's relit test views of a real
+    capture against its test photographs, in the columns of metrics.csv
+    (relight_env: test_views)."""
+    input:
+        relit=lambda w: [f"results/relight_real/{w.object}/{w.env}/{w.poses}/{m}" for m in METHODS],
+        test="results/imports/{object}/test",
+        code=library("score_real_relight"),
+    output:
+        "results/tables/real/{object}_{env}_{poses}_relight.csv",
+    params:
+        methods=METHODS,
+        metrics={key: config["evaluate"][key] for key in ("mask_min_coverage", "hdr_clip", "hdr_normalise")},
+    log:
+        "results/logs/score_real_relight/{object}_{env}_{poses}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    script:
+        "../workflow/scripts/score_real_relight.py"
+
+
+def real_capture_outputs():
+    """Every output of the real captures alone (targets of rule real_captures)."""
+    outputs = []
+    for name, capture in REAL_CAPTURES.items():
+        o, e = name, capture["env"]
+        outputs += [f"results/imports/{o}/env_orientation.tsv", f"results/observations/{o}/{e}/{POSES}"]
+        outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for m in METHODS]
+        outputs += [f"results/entropy/{o}/{e}/{POSES}", f"results/figures/{o}/{e}/{POSES}/maps.png"]
+        outputs.append(f"results/tables/real/{o}_{e}_{POSES}_relight.csv")
+        if "textures" in capture:
+            outputs.append(f"results/tables/real/{o}_{e}_{POSES}.csv")
+    return outputs
+
+
+rule real_captures:
+    """Only the real captures (config `real_captures`): import, orientation check,
+    observations, every method's estimates, entropy, the maps figure, the relit
+    test views' scores and, with ground truth, the parameter scores; nothing of
+    the synthetic benchmark."""
+    input:
+        real_capture_outputs(),

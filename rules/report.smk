@@ -70,8 +70,8 @@ rule capture_figure:
     with the entropy map (Turbo) and each method's per-texel error."""
     input:
         estimates=lambda w: [f"results/estimates/{w.object}/{w.env}/{w.poses}/{m}" for m in METHODS],
-        # Real captures have no ground-truth textures: their figure shows no error maps.
-        truth=lambda w: [] if w.object in REAL_CAPTURES else [object_files(w.object)[n] for n in TEXTURES],
+        # A real capture without ground-truth textures: its figure shows no error maps.
+        truth=truth_files,
         observations="results/observations/{object}/{env}/{poses}",
         entropy="results/entropy/{object}/{env}/{poses}",
         code=library("report_figures"),

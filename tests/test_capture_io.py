@@ -8,6 +8,7 @@ import pytest
 from freqbrdf.capture_io import blender_transforms, cameras_from_blender, export_capture, import_capture
 from freqbrdf.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics
 from freqbrdf.io import read_json, write_exr, write_json, write_png
+from freqbrdf.meshes import make_mesh, read_ply, write_ply
 
 
 def _cameras(n=3, width=40, height=30):
@@ -47,7 +48,7 @@ def test_export_then_import_restores_the_capture(tmp_path):
     cams = _cameras()
     for split in ("train", "test"):
         _native_capture(tmp_path / "native" / split, cams)
-    (tmp_path / "mesh.ply").write_bytes(b"ply")
+    write_ply(tmp_path / "mesh.ply", make_mesh("sphere"))
     write_exr(tmp_path / "env.exr", np.ones((4, 8, 3)))
     export_capture({s: tmp_path / "native" / s for s in ("train", "test")}, tmp_path / "mesh.ply", tmp_path / "env.exr", tmp_path / "orb")
     counts = import_capture(tmp_path / "orb", {s: tmp_path / "back" / s for s in ("train", "test")},
@@ -63,6 +64,8 @@ def test_import_errors_name_the_file(tmp_path):
         import_capture(tmp_path / "nowhere", {"train": tmp_path / "t"}, tmp_path / "m", tmp_path / "e")
     orb = tmp_path / "orb"
     orb.mkdir()
+    write_ply(orb / "mesh.ply", make_mesh("sphere"))
+    write_exr(orb / "envmap.exr", np.ones((4, 8, 3)))
     with pytest.raises(FileNotFoundError, match="transforms_train.json"):
         import_capture(orb, {"train": tmp_path / "t"}, tmp_path / "m", tmp_path / "e")
     cams = _cameras(2)
@@ -75,8 +78,162 @@ def test_import_errors_name_the_file(tmp_path):
         import_capture(orb, {"train": tmp_path / "t"}, tmp_path / "m", tmp_path / "e")
     write_exr(orb / "train/0001.exr", np.zeros((20, 40, 3)))
     write_png(orb / "train_mask/0001.png", np.ones((20, 40)))
-    with pytest.raises(ValueError, match=r"0001.exr: image is \(20, 40\), the first train view is \(30, 40\)"):
+    with pytest.raises(ValueError, match=r"0001.exr: image is \(20, 40\), the first view of its split is \(30, 40\)"):
         import_capture(orb, {"train": tmp_path / "t2"}, tmp_path / "m", tmp_path / "e")
     (orb / "transforms_train.json").write_text(json.dumps({"frames": [{"file_path": "./train/0000"}]}))
     with pytest.raises(ValueError, match="transforms_train.json: malformed transforms"):
         import_capture(orb, {"train": tmp_path / "t3"}, tmp_path / "m", tmp_path / "e")
+
+
+def _orb(root, cams=None, mesh_file="mesh.ply"):
+    """A valid two-split exchange-layout capture of the sphere."""
+    cams = cams or _cameras()
+    for split in ("train", "test"):
+        (root / split).mkdir(parents=True)
+        (root / f"{split}_mask").mkdir()
+        for k in range(len(cams)):
+            write_exr(root / split / f"{k:04d}.exr", np.full((cams.height, cams.width, 3), k + 1.0, np.float32))
+            write_png(root / f"{split}_mask" / f"{k:04d}.png", np.ones((cams.height, cams.width)))
+        write_json(root / f"transforms_{split}.json", blender_transforms(cams, split))
+    write_ply(root / mesh_file, make_mesh("sphere"))
+    write_exr(root / "envmap.exr", np.ones((4, 8, 3)))
+    return root
+
+
+def _import(orb, out, **options):
+    return import_capture(orb, {s: out / s for s in ("train", "test")}, out / "mesh.ply", out / "env.exr", **options)
+
+
+@pytest.mark.parametrize("broken, message", [
+    ("train_mask/0001.png", r"train_mask/0001.png: not a readable PNG"),
+    ("test_mask/0000.png", r"test_mask/0000.png: not a readable PNG"),
+    ("envmap.exr", r"envmap.exr: not a readable OpenEXR file"),
+    ("mesh.ply", r"mesh.ply: not a readable PLY file"),
+    ("test/0002.exr", r"test/0002.exr: not a readable OpenEXR file"),
+])
+def test_every_source_file_is_read_at_import_and_named(tmp_path, broken, message):
+    orb = _orb(tmp_path / "orb")
+    (orb / broken).write_bytes(b"garbage")
+    with pytest.raises(ValueError, match=message) as info:
+        _import(orb, tmp_path / "out")
+    assert str(orb) in str(info.value) and "\n" not in str(info.value)
+
+
+def test_wrong_sized_mask_and_bad_environment_are_named(tmp_path):
+    orb = _orb(tmp_path / "orb")
+    write_png(orb / "train_mask/0001.png", np.ones((10, 10)))
+    with pytest.raises(ValueError, match=r"orb/train_mask/0001.png: mask is \(10, 10\), its image is \(30, 40\)"):
+        _import(orb, tmp_path / "a")
+    orb = _orb(tmp_path / "orb2")
+    write_exr(orb / "envmap.exr", np.ones((4, 4, 3)))
+    with pytest.raises(ValueError, match=r"orb2/envmap.exr: environment map has shape \(4, 4, 3\)"):
+        _import(orb, tmp_path / "b")
+    write_exr(orb / "envmap.exr", -np.ones((4, 8, 3)))
+    with pytest.raises(ValueError, match="orb2/envmap.exr: 96 negative radiance values"):
+        _import(orb, tmp_path / "c")
+
+
+def test_a_mesh_without_uvs_stops_the_import_naming_the_source(tmp_path):
+    orb = _orb(tmp_path / "orb")
+    (orb / "mesh.ply").unlink()
+    (orb / "mesh.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(ValueError, match=r"orb/mesh.obj: mesh has no texture coordinates"):
+        _import(orb, tmp_path / "out")
+
+
+def test_z_up_obj_and_opencv_cameras_give_the_y_up_capture(tmp_path):
+    from freqbrdf.capture_io import Y_UP_FROM_Z_UP
+
+    cams = _cameras()
+    reference = _orb(tmp_path / "ref", cams)
+    _import(reference, tmp_path / "ref_out")
+    # The same capture written by a Z-up tool: mesh as OBJ, cameras in OpenCV axes.
+    zup = _orb(tmp_path / "zup", cams)
+    (zup / "mesh.ply").unlink()
+    sphere = make_mesh("sphere")
+    v = sphere.vertices @ Y_UP_FROM_Z_UP  # inverse rotation: Y-up -> Z-up
+    lines = [f"v {a:.9f} {b:.9f} {c:.9f}" for a, b, c in v] + [f"vt {a:.9f} {b:.9f}" for a, b in sphere.uvs]
+    lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in sphere.faces]
+    (zup / "mesh.obj").write_text("\n".join(lines) + "\n")
+    world = np.eye(4)
+    world[:3, :3] = Y_UP_FROM_Z_UP.T
+    for split in ("train", "test"):
+        t = read_json(zup / f"transforms_{split}.json")
+        for frame in t["frames"]:
+            frame["transform_matrix"] = (world @ np.array(frame["transform_matrix"]) @ np.diag([1, -1, -1, 1])).tolist()
+        write_json(zup / f"transforms_{split}.json", t)
+    _import(zup, tmp_path / "zup_out", up_axis="z", camera="opencv")
+    a, b = read_ply(tmp_path / "ref_out/mesh.ply"), read_ply(tmp_path / "zup_out/mesh.ply")
+    np.testing.assert_allclose(b.vertices, a.vertices, atol=1e-6)
+    np.testing.assert_allclose(b.normals, a.normals, atol=1e-5)
+    for split in ("train", "test"):
+        ca = cameras_from_json(read_json(tmp_path / f"ref_out/{split}/cameras.json"))
+        cb = cameras_from_json(read_json(tmp_path / f"zup_out/{split}/cameras.json"))
+        np.testing.assert_allclose(cb.world_to_camera, ca.world_to_camera, atol=1e-9)
+
+
+def test_per_view_test_environments_are_imported(tmp_path):
+    orb = _orb(tmp_path / "orb")
+    (orb / "test_env").mkdir()
+    for k in range(3):
+        write_exr(orb / f"test_env/{k:04d}.exr", np.full((4, 8, 3), k + 1.0))
+    _import(orb, tmp_path / "out")
+    from freqbrdf.io import read_exr
+
+    assert read_exr(tmp_path / "out/test/envmaps/0002.exr").max() == 3.0
+    assert not (tmp_path / "out/train/envmaps").exists()
+    (orb / "test_env/0001.exr").unlink()
+    with pytest.raises(FileNotFoundError, match="test_env/0001.exr"):
+        _import(orb, tmp_path / "out2")
+
+
+def test_the_source_checksum_follows_file_contents(tmp_path):
+    import os
+
+    from freqbrdf.capture_io import source_checksum
+
+    orb = _orb(tmp_path / "orb")
+    before = source_checksum(orb)
+    mask = orb / "train_mask/0001.png"
+    stat = mask.stat()
+    write_png(mask, np.zeros((30, 40)))  # a fixed mask, given back its old timestamp
+    os.utime(mask, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    after = source_checksum(orb)
+    assert after != before
+    (orb / ".DS_Store").write_bytes(b"x")
+    os.utime(orb / "envmap.exr")
+    assert source_checksum(orb) == after  # hidden files and timestamps alone do not count
+    assert source_checksum(tmp_path / "none") == "absent"
+
+
+def test_ground_truth_textures_are_checked(tmp_path):
+    from freqbrdf.capture_io import import_textures
+
+    truth = tmp_path / "truth"
+    truth.mkdir()
+    write_exr(truth / "base_color.exr", np.full((8, 8, 3), 0.5))
+    write_exr(truth / "roughness.exr", np.full((8, 8), 0.3))
+    write_exr(truth / "metallic.exr", np.full((8, 8), 1.5))
+    out = {name: tmp_path / f"out/{name}.exr" for name in ("base_color", "roughness", "metallic")}
+    with pytest.raises(ValueError, match=r"truth/metallic.exr: metallic values span \[1.5, 1.5\]"):
+        import_textures(truth, out, 8)
+    write_exr(truth / "metallic.exr", np.zeros((8, 8)))
+    with pytest.raises(ValueError, match=r"truth/base_color.exr: texture is \(8, 8\), the estimates are \(16, 16\)"):
+        import_textures(truth, out, 16)
+    import_textures(truth, out, 8)
+    assert all(path.is_file() for path in out.values())
+
+
+def test_turn_envmap_rolls_whole_columns_and_fov_needs_a_centred_pinhole():
+    from freqbrdf.capture_io import pinhole_fov_deg, turn_envmap
+
+    env = np.arange(2 * 8 * 3, dtype=np.float32).reshape(2, 8, 3)
+    np.testing.assert_array_equal(turn_envmap(env, 90.0), np.roll(env, 2, axis=1))
+    np.testing.assert_array_equal(turn_envmap(turn_envmap(env, 90.0), 270.0), env)
+    assert pinhole_fov_deg(_cameras(), "c.json") == pytest.approx(40.0)
+    shifted = _cameras()
+    K = shifted.K.copy()
+    K[:, 0, 2] += 3.0
+    off_centre = Cameras(K=K, world_to_camera=shifted.world_to_camera, width=40, height=30, names=shifted.names)
+    with pytest.raises(ValueError, match="c.json: needs one square-pixel focal length and a centred principal point"):
+        pinhole_fov_deg(off_centre, "c.json")

@@ -49,6 +49,10 @@ def test_shipped_configs_validate(repo, schema, default, preset):
         (lambda c: c.update(real_captures={"torus": {"dir": "x", "env": "e"}}), r"real_captures\.torus: the name is taken"),
         (lambda c: c.update(real_captures={"pot": {"dir": "x", "env": "sunny"}}), r"real_captures\.pot\.env: 'sunny' is taken"),
         (lambda c: c.update(real_captures={"pot": {"dir": "x"}}), r"config key real_captures\.pot: 'env' is a required property"),
+        (lambda c: c.update(real_captures={"pot": {"dir": "x", "env": "e", "up_axis": "x"}}),
+         r"config key real_captures\.pot\.up_axis: 'x' is not one of \['y', 'z'\]"),
+        (lambda c: c.update(real_captures={"pot": {"dir": "x", "env": "e", "camera": "vulkan"}}),
+         r"config key real_captures\.pot\.camera: 'vulkan' is not one of"),
     ],
 )
 def test_mistakes_give_one_line_naming_the_key(schema, default, edit, message):
@@ -75,3 +79,10 @@ def test_derived_seeds_are_stable_and_distinct():
     seeds = {derived_seed(s, "object", name) for s in (0, 1) for name in ("sphere", "torus", "die")}
     assert len(seeds) == 6
     assert all(0 <= s < 2**31 for s in seeds)
+
+
+def test_a_real_capture_gets_the_documented_defaults(schema, default):
+    default["real_captures"] = {"pot": {"dir": "x", "env": "e"}}
+    check_config(default, schema)
+    assert default["real_captures"]["pot"] == {"dir": "x", "env": "e", "up_axis": "y", "camera": "opengl",
+                                               "align_env": False}

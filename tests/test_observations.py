@@ -244,3 +244,17 @@ def test_a_chunk_that_no_view_sees_gives_empty_observations(mi, meshes):
 def test_bilinear_views_on_no_samples():
     values, finite = bilinear_views(np.ones((2, 4, 4, 3)), np.zeros(0, int), np.zeros(0), np.zeros(0))
     assert values.shape == (0, 3) and finite.shape == (0,)
+
+
+def test_unusable_views_are_named_with_their_reason():
+    from freqbrdf.observations import unusable_views
+
+    images = np.ones((4, 5, 6, 3), np.float32)
+    coverage = np.ones((4, 5, 6), np.float32)
+    images[0] = np.nan
+    coverage[1] = 0.0
+    images[2, :, :3] = np.inf
+    coverage[2, :, 3:] = 0.0
+    assert unusable_views(["a", "b", "c", "d"], images, coverage) == (
+        "every pixel is NaN/Inf: a; mask is empty: b; no finite pixel inside the mask: c; "
+        "no texel seen inside the mask (poses, mesh and mask disagree): d")

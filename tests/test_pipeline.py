@@ -13,9 +13,9 @@ from freqbrdf.io import read_exr, read_json, read_png
 from freqbrdf.meshes import read_ply
 
 
-def snakemake(repo, workdir, *args, extra_config=(), check=True):
+def snakemake(repo, workdir, *args, extra_config=(), check=True, base="tiny.yaml"):
     # --configfile takes several values, so it goes last, after any targets.
-    configs = [str(repo / "config" / "tiny.yaml"), *map(str, extra_config)]
+    configs = [str(repo / "config" / base), *map(str, extra_config)]
     command = [sys.executable, "-m", "snakemake", "-s", str(repo / "Snakefile"), "-d", str(workdir), "--cores", "2",
                *args, "--configfile", *configs]
     run = subprocess.run(command, capture_output=True, text=True, timeout=900)
@@ -341,7 +341,9 @@ def test_changing_a_metric_setting_reruns_only_metrics_and_report_rules(repo, ru
     changed = tmp_path / "metric.yaml"
     changed.write_text("evaluate:\n  hdr_clip: 2.0\n")
     jobs = planned_jobs(snakemake(repo, run, "-n", extra_config=[changed]).stdout)
-    assert jobs == {"metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "all": 1}
+    # score_real_relight: the imported sphere_copy's relit test views, scored with the same settings
+    assert jobs == {"metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "score_real_relight": 1,
+                    "all": 1}
 
 
 def _colour_count(image, rgb) -> int:
@@ -390,3 +392,169 @@ def test_sfm_on_too_small_a_capture_fails_in_one_line_and_leaves_no_poses(repo, 
     assert (run / "results/logs/colmap_poses/sphere_studio.colmap.log").stat().st_size > 0
     poses = run / "results/poses/sphere/studio"
     assert not (poses / "colmap").exists() and not (poses / ".colmap.partial").exists()
+
+
+# ---------------------------------------------------------------- a real capture on its own
+# The tiny run's exported sphere/studio capture, rewritten the way a Z-up tool
+# (Blender, Stanford-ORB) would hand it over: an OBJ mesh and cameras in a Z-up
+# world, the environment map turned by 90 degrees about the up axis, and one
+# environment per test view. Imported with up_axis: z and align_env: true and
+# scored against the sphere's ground truth, it must match the original capture.
+
+
+def _orb_fixture(export, root, roll_columns):
+    """An exchange-layout capture in Stanford-ORB's conventions, from a capture this project exported."""
+    import shutil
+
+    from freqbrdf.capture_io import Y_UP_FROM_Z_UP
+    from freqbrdf.io import write_exr, write_json
+
+    shutil.copytree(export, root)
+    (root / "mesh.ply").unlink()
+    mesh = read_ply(export / "mesh.ply")
+    z_up = mesh.vertices @ Y_UP_FROM_Z_UP  # the inverse of the import's rotation
+    lines = ["# Z-up, no normals: the import recomputes them"]
+    lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in z_up] + [f"vt {u:.9g} {v:.9g}" for u, v in mesh.uvs]
+    lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in mesh.faces]
+    (root / "mesh.obj").write_text("\n".join(lines) + "\n")
+    world = np.eye(4)
+    world[:3, :3] = Y_UP_FROM_Z_UP.T
+    for split in ("train", "test"):
+        transforms = read_json(root / f"transforms_{split}.json")
+        for frame in transforms["frames"]:
+            frame["transform_matrix"] = (world @ np.array(frame["transform_matrix"])).tolist()
+        write_json(root / f"transforms_{split}.json", transforms)
+    env = np.roll(read_exr(export / "envmap.exr"), roll_columns, axis=1)
+    write_exr(root / "envmap.exr", env)
+    (root / "test_env").mkdir()
+    for k in range(len(read_json(root / "transforms_test.json")["frames"])):
+        write_exr(root / f"test_env/{k:04d}.exr", env)
+    return root
+
+
+# 4 views of 32 pixels leave a few hundred (texel, view) pairs, too few to tell
+# the map's orientation; the fixture is rendered with 12 views of 64 pixels.
+DENSE = {"render": {"resolution": 64, "spp": 8, "train_views": 12, "test_views": 2, "mask_spp": 4},
+         "methods": ["spectrum", "freq"]}
+
+
+@pytest.fixture(scope="module")
+def orb(repo, tmp_path_factory):
+    """A rendered sphere capture exported and rewritten as Stanford-ORB would ship it, and a
+    fresh workdir that builds only the real captures from it."""
+    import OpenEXR
+    import yaml
+
+    tmp = tmp_path_factory.mktemp("orb")
+    (tmp / "dense.yaml").write_text(yaml.safe_dump(DENSE))
+    original = tmp / "original"
+    snakemake(repo, original, "results/exports/sphere/studio", "results/estimates/sphere/studio/gt/spectrum",
+              "results/estimates/sphere/studio/gt/freq", extra_config=[tmp / "dense.yaml"])
+    export = original / "results/exports/sphere/studio"
+    width = read_exr(export / "envmap.exr").shape[1]
+    source = _orb_fixture(export, tmp / "orb_capture", width // 4)
+    nan_source = _orb_fixture(export, tmp / "nan_capture", 0)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for image in (nan_source / "train").glob("*.exr"):
+        image.unlink()  # write_exr refuses NaN, so the views are written with OpenEXR itself
+        with OpenEXR.File(header, {"RGB": np.full((64, 64, 3), np.nan, np.float32)}) as f:
+            f.write(str(image))
+    config = yaml.safe_load((repo / "config/tiny.yaml").read_text()) | DENSE
+    config["real_captures"] = {
+        "orb": {"dir": str(source), "env": "orb_env", "up_axis": "z", "camera": "opengl", "align_env": True,
+                "textures": str(original / "results/objects/sphere")},
+    }
+    (tmp / "orb.yaml").write_text(yaml.safe_dump(config))
+    config["real_captures"] = {"nans": {"dir": str(nan_source), "env": "nan_env", "up_axis": "z"},
+                               "turned": {"dir": str(source), "env": "turned_env", "up_axis": "z"}}
+    (tmp / "nans.yaml").write_text(yaml.safe_dump(config))
+    workdir = tmp / "work"
+    result = snakemake(repo, workdir, "real_captures", base=tmp / "orb.yaml")
+    return {"workdir": workdir, "original": original, "source": source, "config": tmp / "orb.yaml",
+            "nans": tmp / "nans.yaml", "stdout": result.stdout, "stderr": result.stderr, "width": width}
+
+
+def test_a_real_capture_runs_on_its_own(orb):
+    jobs = planned_jobs(orb["stderr"])  # a real run reports its jobs on stderr
+    assert {"import_capture", "import_textures", "env_orientation", "extract_observations", "score_real_capture",
+            "relight_real", "score_real_relight", "real_captures"} <= set(jobs)
+    assert not {"render_capture", "build_object", "build_env", "metrics"} & set(jobs)
+
+
+def test_z_up_capture_with_a_turned_environment_matches_the_original(orb):
+    import pandas as pd
+
+    from freqbrdf.artefacts import read_observations, read_svbrdf
+    from freqbrdf.metrics import parameter_mse
+
+    work, original = orb["workdir"] / "results", orb["original"] / "results"
+    scores = pd.read_csv(work / "imports/orb/env_orientation.tsv", sep="\t")
+    assert int(scores.loc[scores.explained.idxmax()].shift_columns) == 3 * orb["width"] // 4  # 90 degrees back
+    assert "align_env: turned by 270.0 degrees" in orb["stderr"]
+    np.testing.assert_array_equal(read_exr(work / "imports/orb/envmap.exr"), read_exr(original / "envs/studio.exr"))
+    assert read_exr(work / "imports/orb/test/envmaps/0001.exr").shape == (32, 64, 3)
+    truth = read_svbrdf(original / "objects/sphere")
+    obs = read_observations(original / "observations/sphere/studio/gt")
+    real = pd.read_csv(work / "tables/real/orb_orb_env_gt.csv", keep_default_na=False)
+    for method in ("spectrum", "freq"):
+        before = parameter_mse(truth, read_svbrdf(original / f"estimates/sphere/studio/gt/{method}"),
+                               obs.texels.texel[obs.observed])["average"]
+        after = float(real[(real.method == method) & (real.metric == "mse_average")].value.iloc[0])
+        print(f"{method}: parameter MSE {before:.6f} original, {after:.6f} Z-up OBJ + turned map ({after / before - 1:+.2%})")
+        assert after == pytest.approx(before, rel=0.05)
+    assert (real.metric == "pearson_entropy_error").any()
+    assert (work / "figures/orb/orb_env/gt/maps.png").is_file()
+
+
+def test_real_test_views_are_relit_under_their_own_turned_maps_and_scored(orb):
+    import pandas as pd
+
+    from freqbrdf.io import read_png
+
+    work = orb["workdir"] / "results"
+    for name in ("0000", "0001"):
+        # The background shows the environment itself: the view's own map, turned back by
+        # the rotation found for envmap.exr, must show what the photograph shows.
+        relit = read_exr(work / f"relight_real/orb/orb_env/gt/freq/images/{name}.exr")
+        photo = read_exr(work / f"imports/orb/test/images/{name}.exr")
+        background = read_png(work / f"imports/orb/test/masks/{name}.png") == 0
+        assert np.abs(relit[background] - photo[background]).mean() < 0.05 * photo[background].mean()
+    table = pd.read_csv(work / "tables/real/orb_orb_env_gt_relight.csv", keep_default_na=False)
+    assert len(table) == 2 * 4 and (table.relight_env == "test_views").all()
+    assert set(table.metric) == {"psnr_h", "psnr_l", "ssim", "mse"} and np.isfinite(table.value).all()
+
+
+def test_a_changed_file_inside_a_capture_is_re_imported(repo, orb):
+    import os
+
+    from freqbrdf.io import write_png
+
+    mask = orb["source"] / "train_mask/0001.png"
+    stat = mask.stat()
+    original = mask.read_bytes()
+    try:
+        write_png(mask, np.full((32, 32), 255, np.uint8))  # fixed in place, folder timestamp unchanged
+        os.utime(mask, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+        plan = snakemake(repo, orb["workdir"], "real_captures", "-n", base=orb["config"])
+        assert planned_jobs(plan.stdout).get("import_capture") == 1
+    finally:
+        mask.write_bytes(original)
+        os.utime(mask, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    assert "Nothing to be done" in snakemake(repo, orb["workdir"], "real_captures", "-n", base=orb["config"]).stdout
+
+
+def test_a_capture_with_no_usable_pixel_stops_at_extraction_naming_the_views(repo, orb):
+    failed = snakemake(repo, orb["workdir"], "results/observations/nans/nan_env/gt", base=orb["nans"], check=False)
+    assert failed.returncode != 0
+    views = ", ".join(f"{k:04d}" for k in range(12))
+    assert f"no (texel, view) pair is observed; every pixel is NaN/Inf: {views}" in failed.stderr
+    assert not (orb["workdir"] / "results/observations/nans").exists()
+
+
+def test_a_wrongly_oriented_map_is_reported_with_the_best_rotation(repo, orb):
+    # The same capture without align_env: the map is kept, with a warning naming the rotation.
+    run = snakemake(repo, orb["workdir"], "results/imports/turned/envmap.exr", base=orb["nans"])
+    assert f"{orb['source']}/envmap.exr may be wrongly oriented: turned by 270.0 degrees" in run.stderr
+    assert "set align_env: true" in run.stderr
+    work = orb["workdir"] / "results/imports/turned"
+    np.testing.assert_array_equal(read_exr(work / "envmap.exr"), read_exr(orb["source"] / "envmap.exr"))

@@ -174,8 +174,9 @@ def read_png(path: str | os.PathLike) -> np.ndarray:
         raise FileNotFoundError(f"{path}: PNG file not found")
     try:
         return np.asarray(skimage.io.imread(path))
-    except Exception as exc:
-        raise ValueError(f"{path}: not a readable PNG ({exc})") from None
+    except Exception as exc:  # imageio's reasons run over several lines; the first one says it
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise ValueError(f"{path}: not a readable PNG ({reason})") from None
 
 
 def write_json(path: str | os.PathLike, data: Any) -> None:

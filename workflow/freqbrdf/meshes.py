@@ -212,7 +212,7 @@ def make_mesh(name: str, detail: int = 1) -> Mesh:
     positions, uvs, faces, centre = builders[name](int(detail))
     positions, uvs, faces = _drop_degenerate(positions, uvs, faces)
     positions = _normalise(positions, centre)
-    normals = _vertex_normals(positions, faces)
+    normals = vertex_normals(positions, faces)
     return Mesh(vertices=positions, normals=normals, uvs=uvs, faces=faces)
 
 
@@ -365,8 +365,23 @@ def _normalise(positions: np.ndarray, centre: np.ndarray) -> np.ndarray:
     return shifted / np.sqrt(np.max(np.einsum("ij,ij->i", shifted, shifted)))
 
 
-def _vertex_normals(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Unit area-weighted vertex normals, shared by all vertices at one position."""
+def vertex_normals(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit area-weighted vertex normals, shared by all vertices at one position.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (V, 3)
+    faces : ndarray, shape (F, 3), int
+
+    Returns
+    -------
+    ndarray, shape (V, 3)
+
+    Raises
+    ------
+    ValueError
+        If a vertex touches no face or its faces' normals cancel.
+    """
     ids = _weld_ids(positions)
     p0, p1, p2 = (positions[faces[:, k]] for k in range(3))
     # The unnormalised cross product is twice the area times the unit normal.

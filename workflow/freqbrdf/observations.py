@@ -433,3 +433,34 @@ def _visible_pairs(
     mask, _ = bilinear_views(coverage, ki, x[ti, ki], y[ti, ki])
     keep = mask >= min_coverage
     return ti[keep], ki[keep]
+
+
+def unusable_views(names: list[str] | tuple[str, ...], images: np.ndarray, coverage: np.ndarray) -> str:
+    """Why each view of a capture gives no observed pair, as one line grouped by reason.
+
+    Parameters
+    ----------
+    names : sequence of str
+        K view names.
+    images, coverage : ndarray, shape (K, H, W, 3) and (K, H, W)
+        The views (NaN/Inf allowed) and their masks in [0, 1].
+
+    Returns
+    -------
+    str
+        E.g. ``"every pixel is NaN/Inf: 000, 001; mask is empty: 002"``.
+    """
+    groups: dict[str, list[str]] = {}
+    for k, name in enumerate(names):
+        finite = np.isfinite(images[k]).all(axis=-1)
+        covered = coverage[k] > 0
+        if not finite.any():
+            why = "every pixel is NaN/Inf"
+        elif not covered.any():
+            why = "mask is empty"
+        elif not (finite & covered).any():
+            why = "no finite pixel inside the mask"
+        else:
+            why = "no texel seen inside the mask (poses, mesh and mask disagree)"
+        groups.setdefault(why, []).append(name)
+    return "; ".join(f"{why}: {', '.join(views)}" for why, views in groups.items())

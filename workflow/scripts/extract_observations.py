@@ -17,6 +17,7 @@ from freqbrdf.observations import (
     edge_free_distances,
     observe,
     rasterise_uv,
+    unusable_views,
 )
 from freqbrdf.plots import coverage_figure
 from freqbrdf.raycast import distance_maps, mesh_scene, occlusion_test
@@ -63,6 +64,10 @@ def _extract(mi, smk, log, settings, tmp):
         log.info("texels %d-%d of %d observed (%.1f s elapsed)", s, min(s + chunk, n_tex), n_tex,
                  time.perf_counter() - start)
     views_per_texel = writer.views_per_texel()
+    if not views_per_texel.any():
+        # Every later stage would fail on an empty capture, naming its own artefact instead.
+        raise ValueError(f"{smk.input.capture}: no (texel, view) pair is observed; "
+                         f"{unusable_views(cameras.names, images, coverage)}")
     writer.close({
         "poses": smk.wildcards.poses,
         "band_limit": {"rule": settings["band_limit"], "a_prime": a_prime},

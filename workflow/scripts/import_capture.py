@@ -1,4 +1,4 @@
-"""Rule import_capture: a NeRF-Blender / Stanford-ORB capture converted to the native layout."""
+"""Rule import_capture: a NeRF-Blender / Stanford-ORB capture, every file checked, in the native layout."""
 
 from pathlib import Path
 
@@ -9,8 +9,9 @@ from freqbrdf.logs import run_script
 def main(smk, log):
     # Snakemake removes every output of a failed job, so a half import never survives.
     counts = import_capture(Path(smk.input.source), {"train": Path(smk.output.train), "test": Path(smk.output.test)},
-                            Path(smk.output.mesh), Path(smk.output.envmap))
-    log.info("imported %s: %s views", smk.input.source, counts)
+                            Path(smk.output.mesh), Path(smk.output.envmap),
+                            up_axis=smk.params.up_axis, camera=smk.params.camera)
+    log.info("imported %s (%s-up, %s cameras): %s views", smk.input.source, smk.params.up_axis, smk.params.camera, counts)
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
