@@ -6,7 +6,9 @@ The report is a single-page React app whose first view is the workflow
 description; the tables and figures open on click. For each view below this
 script writes a copy of the report with a few lines of JavaScript that open
 that result (as a click in the navigation would: the caption on the left, the
-result on the right), then asks Chromium for a screenshot of the copy:
+result on the right), opens the copy in headless Chromium over the DevTools
+pipe (``bench/devtools.py``), waits until the result is shown (a figure's
+image decoded, a table's frame loaded) and only then takes the screenshot:
 
 - ``workflow.png``: the landing page (workflow description and rule graph);
 - ``tables.png``: results/tables/tables.html (the paper's Tables 1, 2, 4, 5);
@@ -22,13 +24,32 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
+from devtools import DevTools
+
 # Names a Chromium build goes by on Debian, Ubuntu and in Google's packages.
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "chromium-headless-shell", "google-chrome", "google-chrome-stable")
+
+# What a view waits for before its screenshot (JavaScript, truthy when shown):
+# the opened figure's image decoded, or the table's frame loaded; the landing
+# page's rule graph is drawn by Vega into an SVG.
+SHOWN_JS = {
+    "img": "(() => { const im = [...document.images].filter((i) => i.src.startsWith('data:image'));"
+           " return im.length > 0 && im.every((i) => i.complete && i.naturalWidth > 0); })()",
+    "html": "(() => { const f = document.querySelector('iframe'); return f !== null && f.dataset.loaded === '1'; })()",
+    None: "document.readyState === 'complete' && document.querySelector('svg') !== null",
+}
+# A frame of a data: address has an opaque origin: its load event is the only sign it is shown.
+MARK_LOADED_FRAMES_JS = """
+<script>
+document.addEventListener("load", function (e) {
+  if (e.target.tagName === "IFRAME") e.target.dataset.loaded = "1";
+}, true);
+</script>
+"""
 
 # View name -> (suffix of the result path to open, window size). None: the landing page.
 VIEWS: dict[str, tuple[str | None, tuple[int, int]]] = {
@@ -78,30 +99,34 @@ def page_for_view(report_html: str, suffix: str | None) -> str:
     """The report's HTML, with a script that opens the result ending in ``suffix`` (None: unchanged)."""
     if suffix is None:
         return report_html
-    script = OPEN_RESULT_JS % json.dumps(suffix)
+    script = MARK_LOADED_FRAMES_JS + OPEN_RESULT_JS % json.dumps(suffix)
     head, sep, tail = report_html.rpartition("</body>")
     if not sep:
         raise ValueError("report HTML has no </body>: not a Snakemake report?")
     return head + script + sep + tail
 
 
-def screenshot(chromium: str, page: Path, out: Path, size: tuple[int, int], budget_ms: int = 30000) -> None:
-    """Render ``page`` headless and write a PNG of the window.
+def shown_expression(suffix: str | None) -> str:
+    """JavaScript that is truthy once the view of ``suffix`` is on screen (`SHOWN_JS`)."""
+    if suffix is None:
+        return SHOWN_JS[None]
+    return SHOWN_JS["html" if suffix.endswith(".html") else "img"]
 
-    ``--virtual-time-budget`` lets the page's scripts (React, Vega) and the
-    timer above run before the capture; ``--no-sandbox`` is needed as root.
-    At 15 s a figure was once still blank on a loaded machine (image decoding
-    does not wait for virtual time); idle virtual time is skipped, so a larger
-    budget costs little.
+
+def screenshot(chromium: str, page: Path, out: Path, size: tuple[int, int], suffix: str | None,
+               timeout_s: float = 120.0) -> None:
+    """Open ``page`` headless, wait until the view is shown, then write a PNG of the window.
+
+    Raises RuntimeError when the view is not shown within ``timeout_s``.
     """
-    command = [
-        chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--hide-scrollbars",
-        "--no-first-run", "--mute-audio", f"--window-size={size[0]},{size[1]}",
-        f"--virtual-time-budget={budget_ms}", f"--screenshot={out}", page.resolve().as_uri(),
-    ]
-    run = subprocess.run(command, capture_output=True, text=True, timeout=180)
-    if run.returncode != 0 or not out.is_file():
-        raise RuntimeError(f"{chromium} failed (exit {run.returncode}) on {page}:\n{run.stderr[-2000:]}")
+    browser = DevTools(chromium, size)
+    try:
+        browser.call("Page.navigate", session=True, url=page.resolve().as_uri())
+        if not browser.wait_for(shown_expression(suffix), timeout_s):
+            raise RuntimeError(f"{page}: the view of {suffix or 'the landing page'} was not shown within {timeout_s:.0f} s")
+        browser.screenshot(out)
+    finally:
+        browser.close()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -124,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
             suffix, size = VIEWS[name]
             page = Path(tmp) / f"{name}.html"
             page.write_text(page_for_view(report_html, suffix), encoding="utf-8")
-            screenshot(chromium, page, args.out / f"{name}.png", size)
+            screenshot(chromium, page, args.out / f"{name}.png", size, suffix)
             print(args.out / f"{name}.png")
     return 0
 
