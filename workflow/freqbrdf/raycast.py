@@ -48,7 +48,9 @@ def occlusion_test(
     return out
 
 
-def distance_maps(mi: ModuleType, scene, K: np.ndarray, world_to_camera: np.ndarray, width: int, height: int) -> np.ndarray:
+def distance_maps(
+    mi: ModuleType, scene, K: np.ndarray, world_to_camera: np.ndarray, width: int, height: int, chunk: int = 1 << 21
+) -> np.ndarray:
     """Distance from each camera to the first surface seen through each pixel centre.
 
     Parameters
@@ -60,6 +62,9 @@ def distance_maps(mi: ModuleType, scene, K: np.ndarray, world_to_camera: np.ndar
         OpenCV cameras.
     width, height : int
         Image size.
+    chunk : int
+        Rays traced per batch (bounds memory); whole views are batched together,
+        since one large ray cast costs far less than many small ones.
 
     Returns
     -------
@@ -68,14 +73,21 @@ def distance_maps(mi: ModuleType, scene, K: np.ndarray, world_to_camera: np.ndar
     """
     jj, ii = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
     pixels = np.stack([jj.ravel(), ii.ravel(), np.ones(jj.size)], axis=1)
+    n_pix = len(pixels)
     out = np.empty((len(K), height, width), np.float32)
-    for k in range(len(K)):
-        R, t = world_to_camera[k, :3, :3], world_to_camera[k, :3, 3]
-        dirs = pixels @ np.linalg.inv(K[k]).T @ R  # camera rays rotated to world: R^T d
-        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-        origin = (-R.T @ t).astype(np.float32)
-        d = dirs.astype(np.float32)
-        ray = mi.Ray3f(mi.Point3f(*[np.full(len(d), c, np.float32) for c in origin]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
+    per_batch = max(1, chunk // n_pix)
+    for start in range(0, len(K), per_batch):
+        views = range(start, min(start + per_batch, len(K)))
+        origins = np.empty((len(views) * n_pix, 3), np.float32)
+        dirs = np.empty((len(views) * n_pix, 3), np.float32)
+        for i, k in enumerate(views):
+            R, t = world_to_camera[k, :3, :3], world_to_camera[k, :3, 3]
+            d = pixels @ np.linalg.inv(K[k]).T @ R  # camera rays rotated to world: R^T d
+            d /= np.linalg.norm(d, axis=1, keepdims=True)
+            dirs[i * n_pix : (i + 1) * n_pix] = d
+            origins[i * n_pix : (i + 1) * n_pix] = -R.T @ t
+        o, d = origins.T.copy(), dirs.T.copy()  # component-major: Dr.Jit takes contiguous arrays
+        ray = mi.Ray3f(mi.Point3f(o[0], o[1], o[2]), mi.Vector3f(d[0], d[1], d[2]))
         hit = np.array(scene.ray_intersect_preliminary(ray).t, dtype=np.float32)
-        out[k] = hit.reshape(height, width)
+        out[views.start : views.stop] = hit.reshape(len(views), height, width)
     return out
