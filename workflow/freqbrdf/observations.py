@@ -352,6 +352,7 @@ def observe(
     min_coverage: float = 0.99,
     ray_offset: float = 1e-3,
     footprint_slack: float = 2.0,
+    compiled: bool = True,
 ) -> dict[str, np.ndarray]:
     """Observations of a set of texels in every view (one chunk of the capture).
 
@@ -379,6 +380,8 @@ def observe(
     footprint_slack : float
         Depth tolerance of the footprint test in pixel footprints, divided by
         cos(theta_o) (a surface seen at a grazing angle changes depth fast).
+    compiled : bool
+        Compute the per-pair geometry with the fused kernel (see `view_geometry`).
 
     Returns
     -------
@@ -388,15 +391,9 @@ def observe(
         because a pixel read was NaN or infinite.
     """
     n_tex, n_views = len(texels), len(cameras)
-    p, n = texels.position, texels.normal
-    to_cam = cameras.centres[None, :, :] - p[:, None, :]  # (T, K, 3)
-    dist = np.linalg.norm(to_cam, axis=-1)
-    wo = to_cam / dist[..., None]
-    cos_o = np.einsum("tkc,tc->tk", wo, n)
-    pix, depth = project(p, cameras.K, cameras.world_to_camera)  # (T, K, 2), (T, K)
-    x, y = pix[..., 0], pix[..., 1]
-    inside = (depth > 0) & (x >= 0.5) & (x <= cameras.width - 0.5) & (y >= 0.5) & (y <= cameras.height - 0.5)
-    ti, ki = _visible_pairs(texels, cameras, coverage, occluded, wo, inside & (cos_o > 0.0), x, y, min_coverage,
+    geometry = view_geometry(texels, cameras, incoming_map, compiled=compiled)
+    dist, wo, cos_o, x, y = (geometry[name] for name in ("dist", "wo", "cos_o", "x", "y"))
+    ti, ki = _visible_pairs(texels, cameras, coverage, occluded, wo, geometry["candidate"], x, y, min_coverage,
                             ray_offset)
     if distances is not None:
         d_texel = dist[ti, ki]
@@ -412,12 +409,57 @@ def observe(
     radiance[ti, ki] = values
     weight = np.zeros((n_tex, n_views), np.float32)
     weight[ti, ki] = cos_o[ti, ki]
-    frame = np.stack([texels.tangent, texels.bitangent, n], axis=1)  # (T, 3, 3), rows = local axes
-    wo_local = np.einsum("tij,tkj->tki", frame, wo).astype(np.float32)
+    return {"radiance": radiance, "weight": weight, "wo_local": geometry["wo_local"],
+            "incoming": geometry["incoming"], "nonfinite": int((~finite).sum())}
+
+
+def view_geometry(
+    texels: SurfaceTexels, cameras: Cameras, incoming_map: np.ndarray, *, compiled: bool = True
+) -> dict[str, np.ndarray]:
+    """Where every texel lies in every view, and the light along its mirror direction.
+
+    Parameters
+    ----------
+    texels, cameras : SurfaceTexels, Cameras
+        T texels, K views.
+    incoming_map : ndarray, shape (He, We, 3)
+        Band-limited environment map sampled along mirror directions.
+    compiled : bool
+        Use the fused kernel of `freqbrdf.observation_kernels` (default); False
+        runs the NumPy reference it is tested against (same values, to the last
+        bit of an angle; 10x slower).
+
+    Returns
+    -------
+    dict
+        ``dist`` (T, K): distance to the camera; ``wo`` (T, K, 3): unit direction
+        toward it (world); ``cos_o`` (T, K): its cosine with the normal; ``x``,
+        ``y`` (T, K): pixel coordinates of the projection; ``candidate`` (T, K)
+        bool: in front of the camera, inside the image and facing it;
+        ``wo_local`` (T, K, 3) float32: ``wo`` in the texel's frame; ``incoming``
+        (T, K, 3) float32: `sample_equirect` of ``incoming_map`` along the mirror
+        direction.
+    """
+    frame = np.stack([texels.tangent, texels.bitangent, texels.normal], axis=1)  # (T, 3, 3), rows = local axes
+    if compiled:
+        from .observation_kernels import view_geometry as kernel  # imports numba: only where it runs
+
+        return kernel(texels.position, texels.normal, frame, cameras.centres, cameras.world_to_camera, cameras.K,
+                      cameras.width, cameras.height, np.asarray(incoming_map, np.float32))
+    p, n = texels.position, texels.normal
+    to_cam = cameras.centres[None, :, :] - p[:, None, :]  # (T, K, 3)
+    dist = np.linalg.norm(to_cam, axis=-1)
+    wo = to_cam / dist[..., None]
+    cos_o = np.einsum("tkc,tc->tk", wo, n)
+    pix, depth = project(p, cameras.K, cameras.world_to_camera)  # (T, K, 2), (T, K)
+    x, y = pix[..., 0], pix[..., 1]
+    inside = (depth > 0) & (x >= 0.5) & (x <= cameras.width - 0.5) & (y >= 0.5) & (y <= cameras.height - 0.5)
     wr = 2.0 * cos_o[..., None] * n[:, None, :] - wo
-    incoming = sample_equirect(incoming_map, wr).astype(np.float32)
-    return {"radiance": radiance, "weight": weight, "wo_local": wo_local, "incoming": incoming,
-            "nonfinite": int((~finite).sum())}
+    return {
+        "dist": dist, "wo": wo, "cos_o": cos_o, "x": x, "y": y, "candidate": inside & (cos_o > 0.0),
+        "wo_local": np.einsum("tij,tkj->tki", frame, wo).astype(np.float32),
+        "incoming": sample_equirect(incoming_map, wr).astype(np.float32),
+    }
 
 
 def _visible_pairs(
