@@ -24,7 +24,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["view_geometry"]
+__all__ = ["view_geometry", "nearest_faces"]
 
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
@@ -125,3 +125,77 @@ def view_geometry(position: np.ndarray, normal: np.ndarray, frame: np.ndarray, c
                    out["dist"], out["wo"], out["cos_o"], out["x"], out["y"], out["candidate"], out["wo_local"],
                    out["incoming"])
     return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _nearest_faces(uv, faces, R, dilate, best_face, best_bary, best_dist):  # pragma: no cover - compiled
+    bary = np.empty(3)
+    for f in range(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        ax, ay, bx, by, cx, cy = uv[a, 0], uv[a, 1], uv[b, 0], uv[b, 1], uv[c, 0], uv[c, 1]
+        x_lo = int(min(max(math.floor(min(ax, bx, cx) - dilate), 0), R - 1))
+        y_lo = int(min(max(math.floor(min(ay, by, cy) - dilate), 0), R - 1))
+        x_hi = int(min(max(math.ceil(max(ax, bx, cx) + dilate), 0), R - 1))
+        y_hi = int(min(max(math.ceil(max(ay, by, cy) + dilate), 0), R - 1))
+        v0x, v0y, v1x, v1y = bx - ax, by - ay, cx - ax, cy - ay
+        den = v0x * v1y - v1x * v0y
+        degenerate = not abs(den) > 1e-20
+        safe = 1.0 if degenerate else den
+        for py in range(y_lo, y_hi + 1):
+            for px in range(x_lo, x_hi + 1):
+                # observations._closest_on_triangle, operation by operation
+                v2x, v2y = px - ax, py - ay
+                l1 = (v2x * v1y - v1x * v2y) / safe
+                l2 = (v0x * v2y - v2x * v0y) / safe
+                bary[0], bary[1], bary[2] = 1.0 - l1 - l2, l1, l2
+                if not degenerate and bary[0] >= -1e-9 and l1 >= -1e-9 and l2 >= -1e-9:
+                    dist = 0.0
+                else:
+                    dist = np.inf
+                    for i in range(3):
+                        j = (i + 1) % 3
+                        sx, sy = uv[faces[f, i], 0], uv[faces[f, i], 1]
+                        ex, ey = uv[faces[f, j], 0] - sx, uv[faces[f, j], 1] - sy
+                        t = ((px - sx) * ex + (py - sy) * ey) / max(ex * ex + ey * ey, 1e-30)
+                        t = min(max(t, 0.0), 1.0)
+                        qx, qy = sx + t * ex - px, sy + t * ey - py
+                        d = math.sqrt(qx * qx + qy * qy)
+                        if d < dist:
+                            dist = d
+                            bary[:] = 0.0
+                            bary[i], bary[j] = 1.0 - t, t
+                flat = py * R + px
+                if dist <= dilate and dist < best_dist[flat]:  # ties: the lowest face index
+                    best_dist[flat] = dist
+                    best_face[flat] = f
+                    best_bary[flat] = bary
+
+
+def nearest_faces(uv: np.ndarray, faces: np.ndarray, R: int, dilate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nearest UV triangle of every texel centre of an R x R atlas within ``dilate`` texels.
+
+    Parameters
+    ----------
+    uv : ndarray, shape (V, 2)
+        Vertex uvs in texel-index coordinates (texel (i, j) centre at x = j, y = i).
+    faces : ndarray, shape (F, 3), int
+    R : int
+        Atlas size.
+    dilate : float
+        Largest distance (texels) of a texel centre from its triangle.
+
+    Returns
+    -------
+    face : ndarray, shape (R*R,), int64
+        Nearest face (-1: none within ``dilate``); ties go to the lowest index.
+    bary : ndarray, shape (R*R, 3)
+        Barycentrics of the nearest point of that face.
+    dist : ndarray, shape (R*R,)
+        Its distance (0 inside the triangle, inf without a face).
+    """
+    best_face = np.full(R * R, -1, dtype=np.int64)
+    best_bary = np.zeros((R * R, 3))
+    best_dist = np.full(R * R, np.inf)
+    _nearest_faces(np.ascontiguousarray(uv, dtype=np.float64), np.ascontiguousarray(faces, dtype=np.int64), int(R),
+                   float(dilate), best_face, best_bary, best_dist)
+    return best_face, best_bary, best_dist

@@ -129,7 +129,9 @@ def _closest_on_triangle(p: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np
     return best, dist
 
 
-def rasterise_uv(mesh: Mesh, resolution: int, dilate_texels: float = 1.0, chunk_faces: int = 8192) -> SurfaceTexels:
+def rasterise_uv(
+    mesh: Mesh, resolution: int, dilate_texels: float = 1.0, chunk_faces: int = 8192, *, compiled: bool = True
+) -> SurfaceTexels:
     """Surface point and frame of every texel the mesh's UV atlas covers.
 
     A texel is valid when its centre lies in a UV triangle, or within
@@ -146,7 +148,11 @@ def rasterise_uv(mesh: Mesh, resolution: int, dilate_texels: float = 1.0, chunk_
     dilate_texels : float
         Dilation distance in texels (0 disables it).
     chunk_faces : int
-        Faces processed at once (bounds memory).
+        Faces processed at once by the NumPy path (bounds memory).
+    compiled : bool
+        Find each texel's nearest triangle with the kernel of
+        `freqbrdf.observation_kernels` (default; same result, 20x faster) instead
+        of the NumPy reference.
 
     Returns
     -------
@@ -156,24 +162,50 @@ def rasterise_uv(mesh: Mesh, resolution: int, dilate_texels: float = 1.0, chunk_
         raise ValueError(f"resolution must be >= 2, got {resolution}")
     R = int(resolution)
     uv = mesh.uvs * R - 0.5  # texel-index coordinates: texel (i, j) centre at (x=j, y=i)
+    if compiled:
+        from .observation_kernels import nearest_faces  # imports numba: only where it runs
+
+        best_face, best_bary, best_dist = nearest_faces(uv, mesh.faces, R, float(dilate_texels))
+    else:
+        best_face, best_bary, best_dist = _nearest_faces(uv, mesh.faces, R, dilate_texels, chunk_faces)
+    texel = np.nonzero(best_face >= 0)[0]
+    corners = mesh.faces[best_face[texel]]  # (T, 3)
+    bary = best_bary[texel][..., None]
+    position = (mesh.vertices[corners] * bary).sum(axis=1)
+    normal = (mesh.normals[corners] * bary).sum(axis=1)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    tangent, bitangent = tangent_frame(normal)
+    return SurfaceTexels(R, texel, position, normal, tangent, bitangent, best_dist[texel] > 0.0)
+
+
+def _nearest_faces(
+    uv: np.ndarray, faces: np.ndarray, R: int, dilate_texels: float, chunk_faces: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nearest UV triangle of every texel centre within ``dilate_texels`` (NumPy reference).
+
+    ``uv`` (V, 2) in texel-index coordinates, ``faces`` (F, 3). Returns, per texel
+    of the R x R atlas (flat ``i * R + j``): the face (-1: none), its barycentrics
+    of the nearest point (R*R, 3) and the distance (0 inside; ties go to the
+    lowest face index).
+    """
     best_dist = np.full(R * R, np.inf)
     best_face = np.full(R * R, -1, dtype=np.int64)
     best_bary = np.zeros((R * R, 3))
-    for start in range(0, len(mesh.faces), chunk_faces):
-        faces = np.arange(start, min(start + chunk_faces, len(mesh.faces)))
-        tri = uv[mesh.faces[faces]]  # (F, 3, 2)
+    for start in range(0, len(faces), chunk_faces):
+        chunk = np.arange(start, min(start + chunk_faces, len(faces)))
+        tri = uv[faces[chunk]]  # (F, 3, 2)
         lo = np.clip(np.floor(tri.min(axis=1) - dilate_texels), 0, R - 1).astype(np.int64)
         hi = np.clip(np.ceil(tri.max(axis=1) + dilate_texels), 0, R - 1).astype(np.int64)
         nx, ny = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
         counts = nx * ny
-        owner = np.repeat(np.arange(len(faces)), counts)
+        owner = np.repeat(np.arange(len(chunk)), counts)
         offset = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
         px = lo[owner, 0] + offset % nx[owner]
         py = lo[owner, 1] + offset // nx[owner]
         bary, dist = _closest_on_triangle(np.stack([px, py], axis=1).astype(np.float64), tri[owner])
         keep = dist <= dilate_texels
         flat = (py * R + px)[keep]
-        dist, bary, face = dist[keep], bary[keep], faces[owner[keep]]
+        dist, bary, face = dist[keep], bary[keep], chunk[owner[keep]]
         # Per texel keep the candidate nearest its triangle (0 when inside one).
         order = np.lexsort((dist, flat))
         flat, dist, bary, face = flat[order], dist[order], bary[order], face[order]
@@ -184,14 +216,7 @@ def rasterise_uv(mesh: Mesh, resolution: int, dilate_texels: float = 1.0, chunk_
         best_dist[flat[better]] = dist[better]
         best_face[flat[better]] = face[better]
         best_bary[flat[better]] = bary[better]
-    texel = np.nonzero(best_face >= 0)[0]
-    corners = mesh.faces[best_face[texel]]  # (T, 3)
-    bary = best_bary[texel][..., None]
-    position = (mesh.vertices[corners] * bary).sum(axis=1)
-    normal = (mesh.normals[corners] * bary).sum(axis=1)
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    tangent, bitangent = tangent_frame(normal)
-    return SurfaceTexels(R, texel, position, normal, tangent, bitangent, best_dist[texel] > 0.0)
+    return best_face, best_bary, best_dist
 
 
 def band_limit_parameter(n_views: int, rule: str) -> float:
