@@ -1,17 +1,25 @@
-"""Compiled (numba) inner loop of observation extraction.
+"""Compiled (numba) inner loops of observation extraction.
 
-`view_geometry` computes, for every (texel, view) pair of a chunk, what
-`freqbrdf.observations.view_geometry_reference` computes with NumPy: the
-direction and distance to the camera, the projection, the local view direction
-and the band-limited light along the mirror direction. NumPy spreads this over
-some thirty (texels, views)-sized temporaries; the kernel makes one pass and
-keeps every value in registers, 10x faster. The arithmetic follows the NumPy
-reference operation by operation (same order of sums, no fused multiply-adds),
-so the results agree bit for bit except where ``acos``/``atan2`` of the
-platform's libm and NumPy's vectorised versions differ in the last bit of an
-angle, which moves a bilinear weight by about 1e-16.
+Each kernel fuses a step of `freqbrdf.observations` that NumPy spreads over
+many temporaries the size of a chunk's (texel, view) pairs, and its NumPy
+counterpart there (``compiled=False``) is the reference the tests compare it
+with:
 
-The kernel is compiled on first use and cached on disk (numba ``cache=True``).
+- `view_geometry`: direction and distance to the camera, projection, local
+  view direction and the band-limited light along the mirror direction of
+  every pair (`freqbrdf.observations.view_geometry`);
+- `pixel_reads`: the mask, depth-footprint and bilinear image reads of the
+  candidate pairs (`freqbrdf.observations.pixel_reads`);
+- `nearest_faces`: each texel's nearest UV triangle
+  (`freqbrdf.observations.rasterise_uv`).
+
+The arithmetic follows the NumPy code operation by operation (same order of
+sums, no fused multiply-adds), so the results agree bit for bit except where
+``acos``/``atan2`` of the platform's libm and NumPy's vectorised versions
+differ in the last bit of an angle, which moves a bilinear weight by about
+1e-16.
+
+The kernels are compiled on first use and cached on disk (numba ``cache=True``).
 Each output element is written by exactly one iteration of the parallel loop,
 so results do not depend on the number of threads. Importing this module
 imports numba (about 0.2 s), so `freqbrdf.observations` imports it lazily.
@@ -24,7 +32,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["view_geometry", "nearest_faces"]
+__all__ = ["view_geometry", "pixel_reads", "nearest_faces"]
 
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
@@ -126,6 +134,84 @@ def view_geometry(position: np.ndarray, normal: np.ndarray, frame: np.ndarray, c
                    out["incoming"])
     return out
 
+
+@numba.njit(parallel=True, cache=True, error_model="numpy")
+def _pixel_reads(ti, ki, x, y, dist, cos_o, focal, images, coverage, distances, min_coverage, ray_offset,
+                 footprint_slack, usable, finite, radiance):  # pragma: no cover - compiled
+    h, w = coverage.shape[1], coverage.shape[2]
+    n_ch = images.shape[3]
+    for i in numba.prange(ti.shape[0]):
+        t, k = ti[i], ki[i]
+        # the four pixels of the bilinear read (observations.bilinear_views)
+        fx, fy = x[t, k] - 0.5, y[t, k] - 0.5
+        x0 = min(max(int(math.floor(fx)), 0), w - 2)
+        y0 = min(max(int(math.floor(fy)), 0), h - 2)
+        tx, ty = fx - x0, fy - y0
+        c00, c01, c10, c11 = coverage[k, y0, x0], coverage[k, y0, x0 + 1], coverage[k, y0 + 1, x0], coverage[k, y0 + 1, x0 + 1]
+        c00 = c00 if math.isfinite(c00) else 0.0
+        c01 = c01 if math.isfinite(c01) else 0.0
+        c10 = c10 if math.isfinite(c10) else 0.0
+        c11 = c11 if math.isfinite(c11) else 0.0
+        ok = (c00 * (1 - tx) + c01 * tx) * (1 - ty) + (c10 * (1 - tx) + c11 * tx) * ty >= min_coverage
+        if ok and distances.shape[0] > 0:  # every footprint pixel sees the texel's own surface
+            d = dist[t, k]
+            slack = ray_offset + footprint_slack * (d / focal[k]) / max(cos_o[t, k], 0.1)
+            ok = (abs(distances[k, y0, x0] - d) <= slack and abs(distances[k, y0, x0 + 1] - d) <= slack
+                  and abs(distances[k, y0 + 1, x0] - d) <= slack and abs(distances[k, y0 + 1, x0 + 1] - d) <= slack)
+        usable[i] = ok
+        all_finite = True
+        for ch in range(n_ch):
+            v00, v01, v10, v11 = images[k, y0, x0, ch], images[k, y0, x0 + 1, ch], images[k, y0 + 1, x0, ch], images[k, y0 + 1, x0 + 1, ch]
+            if not (math.isfinite(v00) and math.isfinite(v01) and math.isfinite(v10) and math.isfinite(v11)):
+                all_finite = False
+                v00 = v00 if math.isfinite(v00) else 0.0
+                v01 = v01 if math.isfinite(v01) else 0.0
+                v10 = v10 if math.isfinite(v10) else 0.0
+                v11 = v11 if math.isfinite(v11) else 0.0
+            radiance[i, ch] = (v00 * (1 - tx) + v01 * tx) * (1 - ty) + (v10 * (1 - tx) + v11 * tx) * ty
+        finite[i] = all_finite
+
+
+def pixel_reads(ti: np.ndarray, ki: np.ndarray, x: np.ndarray, y: np.ndarray, dist: np.ndarray, cos_o: np.ndarray,
+                focal: np.ndarray, images: np.ndarray, coverage: np.ndarray, distances: np.ndarray | None,
+                min_coverage: float, ray_offset: float, footprint_slack: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pixels the views show of P (texel, view) pairs, and whether they can be used.
+
+    Parameters
+    ----------
+    ti, ki : ndarray, shape (P,), int
+        Texel and view of each pair.
+    x, y, dist, cos_o : ndarray, shape (T, K)
+        Pixel coordinates, distance to the camera and cos(theta_o) of every pair
+        (`view_geometry`).
+    focal : ndarray, shape (K,)
+        Focal length of each view, in pixels.
+    images, coverage : ndarray, shape (K, H, W, C) and (K, H, W), float32
+    distances : ndarray, shape (K, H, W), float32, or None
+        Pixel-centre distances, NaN near edges; None skips the footprint test.
+    min_coverage, ray_offset, footprint_slack : float
+        As in `freqbrdf.observations.observe`.
+
+    Returns
+    -------
+    usable : ndarray, shape (P,), bool
+        The mask covers the bilinear footprint (and, with ``distances``, each of
+        its four pixels sees the texel's own surface).
+    finite : ndarray, shape (P,), bool
+        Every pixel read is finite.
+    radiance : ndarray, shape (P, C), float32
+        Bilinear value, non-finite pixels read as 0.
+    """
+    n = len(ti)
+    usable, finite = np.empty(n, np.bool_), np.empty(n, np.bool_)
+    radiance = np.empty((n, images.shape[3]), np.float32)
+    distances = np.empty((0, 1, 1), np.float32) if distances is None else distances
+    _pixel_reads(np.ascontiguousarray(ti, np.int64), np.ascontiguousarray(ki, np.int64),
+                 *(np.ascontiguousarray(a, np.float64) for a in (x, y, dist, cos_o, focal)),
+                 *(np.ascontiguousarray(a, np.float32) for a in (images, coverage, distances)),
+                 float(min_coverage), float(ray_offset), float(footprint_slack), usable, finite, radiance)
+    return usable, finite, radiance
 
 @numba.njit(cache=True, error_model="numpy")
 def _nearest_faces(uv, faces, R, dilate, best_face, best_bary, best_dist):  # pragma: no cover - compiled

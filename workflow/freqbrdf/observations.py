@@ -406,7 +406,8 @@ def observe(
         Depth tolerance of the footprint test in pixel footprints, divided by
         cos(theta_o) (a surface seen at a grazing angle changes depth fast).
     compiled : bool
-        Compute the per-pair geometry with the fused kernel (see `view_geometry`).
+        Use the compiled kernels of `view_geometry` and `pixel_reads` (default)
+        instead of their NumPy references (same observations).
 
     Returns
     -------
@@ -417,25 +418,24 @@ def observe(
     """
     n_tex, n_views = len(texels), len(cameras)
     geometry = view_geometry(texels, cameras, incoming_map, compiled=compiled)
-    dist, wo, cos_o, x, y = (geometry[name] for name in ("dist", "wo", "cos_o", "x", "y"))
-    ti, ki = _visible_pairs(texels, cameras, coverage, occluded, wo, geometry["candidate"], x, y, min_coverage,
-                            ray_offset)
-    if distances is not None:
-        d_texel = dist[ti, ki]
-        pixel_size = d_texel / cameras.K[ki, 0, 0]  # world size of one pixel at the texel
-        slack = ray_offset + footprint_slack * pixel_size / np.maximum(cos_o[ti, ki], 0.1)
-        gap = np.abs(_footprint_distances(distances, ki, x[ti, ki], y[ti, ki]) - d_texel[:, None])
-        keep = (gap <= slack[:, None]).all(axis=1)  # NaN (edge pixels) fails
-        ti, ki = ti[keep], ki[keep]
-    values, finite = bilinear_views(images, ki, x[ti, ki], y[ti, ki])
-    ti, ki, values = ti[finite], ki[finite], values[finite]
+    ti, ki = np.nonzero(geometry["candidate"])
+    usable, finite, values = pixel_reads(geometry, ti, ki, cameras, images, coverage, distances,
+                                         min_coverage=min_coverage, ray_offset=ray_offset,
+                                         footprint_slack=footprint_slack, compiled=compiled)
+    # Rays only for the pairs the pixel tests keep (every test is per pair, so the order
+    # of the tests does not change which pairs pass).
+    ti, ki, finite, values = ti[usable], ki[usable], finite[usable], values[usable]
+    origins = texels.position[ti] + ray_offset * texels.normal[ti]
+    seen = ~occluded(origins, geometry["wo"][ti, ki], np.linalg.norm(cameras.centres[ki] - origins, axis=1))
+    keep = seen & finite
+    ti, ki = ti[keep], ki[keep]
 
     radiance = np.zeros((n_tex, n_views, 3), np.float32)
-    radiance[ti, ki] = values
+    radiance[ti, ki] = values[keep]
     weight = np.zeros((n_tex, n_views), np.float32)
-    weight[ti, ki] = cos_o[ti, ki]
+    weight[ti, ki] = geometry["cos_o"][ti, ki]
     return {"radiance": radiance, "weight": weight, "wo_local": geometry["wo_local"],
-            "incoming": geometry["incoming"], "nonfinite": int((~finite).sum())}
+            "incoming": geometry["incoming"], "nonfinite": int((seen & ~finite).sum())}
 
 
 def view_geometry(
@@ -487,17 +487,49 @@ def view_geometry(
     }
 
 
-def _visible_pairs(
-    texels: SurfaceTexels, cameras: Cameras, coverage: np.ndarray, occluded: Occluded, wo: np.ndarray,
-    candidate: np.ndarray, x: np.ndarray, y: np.ndarray, min_coverage: float, ray_offset: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Texel and view indices of the ``candidate`` (T, K) pairs that no surface occludes and
-    whose bilinear footprint the object mask covers."""
-    p, n = texels.position, texels.normal
-    ti, ki = np.nonzero(candidate)
-    origins = p[ti] + ray_offset * n[ti]
-    blocked = occluded(origins, wo[ti, ki], np.linalg.norm(cameras.centres[ki] - origins, axis=1))
-    ti, ki = ti[~blocked], ki[~blocked]
-    mask, _ = bilinear_views(coverage, ki, x[ti, ki], y[ti, ki])
-    keep = mask >= min_coverage
-    return ti[keep], ki[keep]
+def pixel_reads(
+    geometry: dict[str, np.ndarray], ti: np.ndarray, ki: np.ndarray, cameras: Cameras, images: np.ndarray,
+    coverage: np.ndarray, distances: np.ndarray | None, *, min_coverage: float, ray_offset: float,
+    footprint_slack: float, compiled: bool = True,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the views show of P (texel, view) pairs, and whether it shows the texel alone.
+
+    Parameters
+    ----------
+    geometry : dict
+        `view_geometry` of the chunk.
+    ti, ki : ndarray, shape (P,), int
+        Texel and view of each pair.
+    cameras, images, coverage, distances, min_coverage, ray_offset, footprint_slack
+        As in `observe`.
+    compiled : bool
+        Use the fused kernel of `freqbrdf.observation_kernels` (default) instead
+        of this NumPy reference (same values).
+
+    Returns
+    -------
+    usable : ndarray, shape (P,), bool
+        The object mask covers the bilinear footprint and, with ``distances``,
+        every pixel of it sees the texel's own surface.
+    finite : ndarray, shape (P,), bool
+        Every pixel read is finite.
+    radiance : ndarray, shape (P, 3), float32
+        Bilinear pixel value (non-finite pixels read as 0).
+    """
+    dist, cos_o, x, y = (geometry[name] for name in ("dist", "cos_o", "x", "y"))
+    if compiled:
+        from .observation_kernels import pixel_reads as kernel  # imports numba: only where it runs
+
+        return kernel(ti, ki, x, y, dist, cos_o, cameras.K[:, 0, 0], images, coverage, distances,
+                      min_coverage, ray_offset, footprint_slack)
+    x, y = x[ti, ki], y[ti, ki]
+    mask, _ = bilinear_views(coverage, ki, x, y)
+    usable = mask >= min_coverage
+    if distances is not None:
+        d_texel = dist[ti, ki]
+        pixel_size = d_texel / cameras.K[ki, 0, 0]  # world size of one pixel at the texel
+        slack = ray_offset + footprint_slack * pixel_size / np.maximum(cos_o[ti, ki], 0.1)
+        gap = np.abs(_footprint_distances(distances, ki, x, y) - d_texel[:, None])
+        usable &= (gap <= slack[:, None]).all(axis=1)  # NaN (edge pixels) fails
+    values, finite = bilinear_views(images, ki, x, y)
+    return usable, finite, values.astype(np.float32)
