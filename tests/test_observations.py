@@ -239,6 +239,20 @@ def test_compiled_observe_equals_the_numpy_reference(meshes, with_distances):
         np.testing.assert_allclose(fast[name], ref[name], rtol=1e-6, atol=1e-7, err_msg=name)
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_compiled_edge_free_distances_equal_the_numpy_reference(dtype):
+    rng = np.random.default_rng(5)
+    d = (3.0 + rng.normal(0.0, 0.03, size=(3, 40, 50))).astype(dtype)  # steps near the 0.1 jump
+    d[rng.uniform(size=d.shape) < 0.02] = np.inf
+    d[0, :, :7] = np.inf  # background touching the border
+    d[1, 0, 0], d[2, -1, -1] = np.nan, np.nan
+    fast = edge_free_distances(d, 0.1)
+    ref = edge_free_distances(d, 0.1, compiled=False)
+    assert fast.dtype == ref.dtype == np.float32
+    assert 0.1 < np.isnan(ref).mean() < 0.9
+    np.testing.assert_array_equal(fast, ref)
+
+
 def test_tangent_frame_is_orthonormal_and_right_handed():
     n = fibonacci_sphere(1000)
     t, b = tangent_frame(n)

@@ -10,6 +10,8 @@ with:
   every pair (`freqbrdf.observations.view_geometry`);
 - `pixel_reads`: the mask, depth-footprint and bilinear image reads of the
   candidate pairs (`freqbrdf.observations.pixel_reads`);
+- `edge_free_distances`: pixels next to a depth discontinuity marked unusable
+  (`freqbrdf.observations.edge_free_distances`);
 - `nearest_faces`: each texel's nearest UV triangle
   (`freqbrdf.observations.rasterise_uv`).
 
@@ -32,7 +34,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["view_geometry", "pixel_reads", "nearest_faces"]
+__all__ = ["view_geometry", "pixel_reads", "edge_free_distances", "nearest_faces"]
 
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
@@ -212,6 +214,32 @@ def pixel_reads(ti: np.ndarray, ki: np.ndarray, x: np.ndarray, y: np.ndarray, di
                  *(np.ascontiguousarray(a, np.float32) for a in (images, coverage, distances)),
                  float(min_coverage), float(ray_offset), float(footprint_slack), usable, finite, radiance)
     return usable, finite, radiance
+
+@numba.njit(parallel=True, cache=True, error_model="numpy")
+def _edge_free_distances(distances, jump, out):  # pragma: no cover - compiled
+    n_views, h, w = distances.shape
+    for row in numba.prange(n_views * h):
+        k, i = row // h, row % h
+        for j in range(w):
+            d = np.float64(distances[k, i, j])
+            edge = not math.isfinite(d)
+            ii = max(i - 1, 0)  # the border repeats itself
+            while not edge and ii <= min(i + 1, h - 1):
+                for jj in range(max(j - 1, 0), min(j + 1, w - 1) + 1):
+                    neighbour = np.float64(distances[k, ii, jj])
+                    edge = edge or not math.isfinite(neighbour) or abs(neighbour - d) > jump
+                ii += 1
+            out[k, i, j] = np.nan if edge else distances[k, i, j]
+
+
+def edge_free_distances(distances: np.ndarray, jump: float) -> np.ndarray:
+    """``distances`` (K, H, W) with NaN within one pixel of a depth step above ``jump`` or of a
+    non-finite value, float32 (as `freqbrdf.observations.edge_free_distances`)."""
+    distances = np.asarray(distances)
+    out = np.empty(distances.shape, np.float32)
+    _edge_free_distances(np.ascontiguousarray(distances, np.float32 if distances.dtype == np.float32 else np.float64),
+                         float(jump), out)
+    return out
 
 @numba.njit(cache=True, error_model="numpy")
 def _nearest_faces(uv, faces, R, dilate, best_face, best_bary, best_dist):  # pragma: no cover - compiled

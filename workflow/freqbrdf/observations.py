@@ -323,7 +323,7 @@ def bilinear_views(images: np.ndarray, view: np.ndarray, x: np.ndarray, y: np.nd
     return values, finite
 
 
-def edge_free_distances(distances: np.ndarray, jump: float = 0.1) -> np.ndarray:
+def edge_free_distances(distances: np.ndarray, jump: float = 0.1, *, compiled: bool = True) -> np.ndarray:
     """Mark pixels next to a depth discontinuity as unusable.
 
     A pixel's value is the mean radiance over its area, so a pixel whose
@@ -338,12 +338,19 @@ def edge_free_distances(distances: np.ndarray, jump: float = 0.1) -> np.ndarray:
     jump : float
         Distance change between neighbouring pixels that counts as an edge
         (object units; the object's radius is 1).
+    compiled : bool
+        Use the kernel of `freqbrdf.observation_kernels` (default; one pass instead
+        of NumPy's nine over float64 copies) rather than this NumPy reference.
 
     Returns
     -------
     ndarray, shape (K, H, W), float32
         ``distances`` with NaN at pixels within one pixel of an edge or of the background.
     """
+    if compiled:
+        from .observation_kernels import edge_free_distances as kernel  # imports numba: only where it runs
+
+        return kernel(distances, jump)
     d = distances.astype(np.float64)
     padded = np.pad(d, ((0, 0), (1, 1), (1, 1)), mode="edge")
     h, w = d.shape[1:]
