@@ -78,15 +78,17 @@ def distance_maps(
     per_batch = max(1, chunk // n_pix)
     for start in range(0, len(K), per_batch):
         views = range(start, min(start + per_batch, len(K)))
-        origins = np.empty((len(views) * n_pix, 3), np.float32)
-        dirs = np.empty((len(views) * n_pix, 3), np.float32)
+        # component-major (Dr.Jit takes one contiguous array per coordinate)
+        o = np.empty((3, len(views) * n_pix), np.float32)
+        d = np.empty((3, len(views) * n_pix), np.float32)
         for i, k in enumerate(views):
             R, t = world_to_camera[k, :3, :3], world_to_camera[k, :3, 3]
-            d = pixels @ np.linalg.inv(K[k]).T @ R  # camera rays rotated to world: R^T d
-            d /= np.linalg.norm(d, axis=1, keepdims=True)
-            dirs[i * n_pix : (i + 1) * n_pix] = d
-            origins[i * n_pix : (i + 1) * n_pix] = -R.T @ t
-        o, d = origins.T.copy(), dirs.T.copy()  # component-major: Dr.Jit takes contiguous arrays
+            rays = pixels @ np.linalg.inv(K[k]).T @ R  # camera rays rotated to world: R^T d
+            # |rays| summed as np.linalg.norm does, without its slow reduction over 3-vectors
+            length = np.sqrt(np.square(rays[:, 0]) + np.square(rays[:, 1]) + np.square(rays[:, 2]))
+            for c in range(3):
+                np.divide(rays[:, c], length, out=d[c, i * n_pix : (i + 1) * n_pix], casting="same_kind")
+            o[:, i * n_pix : (i + 1) * n_pix] = (-R.T @ t)[:, None]
         ray = mi.Ray3f(mi.Point3f(o[0], o[1], o[2]), mi.Vector3f(d[0], d[1], d[2]))
         hit = np.array(scene.ray_intersect_preliminary(ray).t, dtype=np.float32)
         out[views.start : views.stop] = hit.reshape(len(views), height, width)
