@@ -8,8 +8,9 @@ with:
 - `view_geometry`: direction and distance to the camera, projection, local
   view direction and the band-limited light along the mirror direction of
   every pair (`freqbrdf.observations.view_geometry`);
-- `pixel_reads`: the mask, depth-footprint and bilinear image reads of the
-  candidate pairs (`freqbrdf.observations.pixel_reads`);
+- `pair_observations`: the mask, depth-footprint and bilinear image reads of
+  the candidate pairs and their visibility rays
+  (`freqbrdf.observations.pair_observations`);
 - `edge_free_distances`: pixels next to a depth discontinuity marked unusable
   (`freqbrdf.observations.edge_free_distances`);
 - `nearest_faces`: each texel's nearest UV triangle
@@ -34,7 +35,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["view_geometry", "pixel_reads", "edge_free_distances", "nearest_faces"]
+__all__ = ["view_geometry", "pair_observations", "edge_free_distances", "nearest_faces"]
 
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
@@ -138,8 +139,9 @@ def view_geometry(position: np.ndarray, normal: np.ndarray, frame: np.ndarray, c
 
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
-def _pixel_reads(ti, ki, x, y, dist, cos_o, focal, images, coverage, distances, min_coverage, ray_offset,
-                 footprint_slack, usable, finite, radiance):  # pragma: no cover - compiled
+def _pair_observations(ti, ki, position, normal, centres, wo, x, y, dist, cos_o, focal, images, coverage, distances,
+                       min_coverage, ray_offset, footprint_slack, radiance, weight, usable, finite, origins, directions,
+                       lengths):  # pragma: no cover - compiled
     h, w = coverage.shape[1], coverage.shape[2]
     n_ch = images.shape[3]
     for i in numba.prange(ti.shape[0]):
@@ -164,31 +166,41 @@ def _pixel_reads(ti, ki, x, y, dist, cos_o, focal, images, coverage, distances, 
         all_finite = True
         for ch in range(n_ch):
             v00, v01, v10, v11 = images[k, y0, x0, ch], images[k, y0, x0 + 1, ch], images[k, y0 + 1, x0, ch], images[k, y0 + 1, x0 + 1, ch]
-            if not (math.isfinite(v00) and math.isfinite(v01) and math.isfinite(v10) and math.isfinite(v11)):
-                all_finite = False
-                v00 = v00 if math.isfinite(v00) else 0.0
-                v01 = v01 if math.isfinite(v01) else 0.0
-                v10 = v10 if math.isfinite(v10) else 0.0
-                v11 = v11 if math.isfinite(v11) else 0.0
-            radiance[i, ch] = (v00 * (1 - tx) + v01 * tx) * (1 - ty) + (v10 * (1 - tx) + v11 * tx) * ty
+            all_finite = all_finite and math.isfinite(v00) and math.isfinite(v01) and math.isfinite(v10) and math.isfinite(v11)
         finite[i] = all_finite
+        if ok and all_finite:
+            for ch in range(n_ch):
+                v00, v01, v10, v11 = images[k, y0, x0, ch], images[k, y0, x0 + 1, ch], images[k, y0 + 1, x0, ch], images[k, y0 + 1, x0 + 1, ch]
+                radiance[t, k, ch] = (v00 * (1 - tx) + v01 * tx) * (1 - ty) + (v10 * (1 - tx) + v11 * tx) * ty
+            weight[t, k] = cos_o[t, k]
+        # the visibility ray toward the camera, from just off the surface
+        length2 = 0.0
+        for c in range(3):
+            o = position[t, c] + ray_offset * normal[t, c]
+            origins[i, c] = o
+            directions[i, c] = wo[t, k, c]
+            length2 += (centres[k, c] - o) * (centres[k, c] - o)
+        lengths[i] = math.sqrt(length2)
 
 
-def pixel_reads(ti: np.ndarray, ki: np.ndarray, x: np.ndarray, y: np.ndarray, dist: np.ndarray, cos_o: np.ndarray,
-                focal: np.ndarray, images: np.ndarray, coverage: np.ndarray, distances: np.ndarray | None,
-                min_coverage: float, ray_offset: float, footprint_slack: float
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The pixels the views show of P (texel, view) pairs, and whether they can be used.
+def pair_observations(ti: np.ndarray, ki: np.ndarray, position: np.ndarray, normal: np.ndarray, centres: np.ndarray,
+                      focal: np.ndarray, geometry: dict[str, np.ndarray], images: np.ndarray, coverage: np.ndarray,
+                      distances: np.ndarray | None, min_coverage: float, ray_offset: float, footprint_slack: float
+                      ) -> dict[str, np.ndarray]:
+    """What the views show of P candidate (texel, view) pairs, and their visibility rays.
 
     Parameters
     ----------
     ti, ki : ndarray, shape (P,), int
-        Texel and view of each pair.
-    x, y, dist, cos_o : ndarray, shape (T, K)
-        Pixel coordinates, distance to the camera and cos(theta_o) of every pair
-        (`view_geometry`).
+        Texel and view of each pair (each pair once).
+    position, normal : ndarray, shape (T, 3)
+        The texels' points and normals.
+    centres : ndarray, shape (K, 3)
+        Camera centres.
     focal : ndarray, shape (K,)
         Focal length of each view, in pixels.
+    geometry : dict
+        ``wo`` (T, K, 3), ``x``, ``y``, ``dist``, ``cos_o`` (T, K) of `view_geometry`.
     images, coverage : ndarray, shape (K, H, W, C) and (K, H, W), float32
     distances : ndarray, shape (K, H, W), float32, or None
         Pixel-centre distances, NaN near edges; None skips the footprint test.
@@ -197,23 +209,27 @@ def pixel_reads(ti: np.ndarray, ki: np.ndarray, x: np.ndarray, y: np.ndarray, di
 
     Returns
     -------
-    usable : ndarray, shape (P,), bool
-        The mask covers the bilinear footprint (and, with ``distances``, each of
-        its four pixels sees the texel's own surface).
-    finite : ndarray, shape (P,), bool
-        Every pixel read is finite.
-    radiance : ndarray, shape (P, C), float32
-        Bilinear value, non-finite pixels read as 0.
+    dict
+        As `freqbrdf.observations.pair_observations`.
     """
-    n = len(ti)
-    usable, finite = np.empty(n, np.bool_), np.empty(n, np.bool_)
-    radiance = np.empty((n, images.shape[3]), np.float32)
+    n_tex, n_views = geometry["x"].shape
+    n, n_ch = len(ti), images.shape[3]
+    out = {
+        "radiance": np.zeros((n_tex, n_views, n_ch), np.float32), "weight": np.zeros((n_tex, n_views), np.float32),
+        "usable": np.empty(n, np.bool_), "finite": np.empty(n, np.bool_),
+        "origins": np.empty((n, 3)), "directions": np.empty((n, 3)), "lengths": np.empty(n),
+    }
     distances = np.empty((0, 1, 1), np.float32) if distances is None else distances
-    _pixel_reads(np.ascontiguousarray(ti, np.int64), np.ascontiguousarray(ki, np.int64),
-                 *(np.ascontiguousarray(a, np.float64) for a in (x, y, dist, cos_o, focal)),
-                 *(np.ascontiguousarray(a, np.float32) for a in (images, coverage, distances)),
-                 float(min_coverage), float(ray_offset), float(footprint_slack), usable, finite, radiance)
-    return usable, finite, radiance
+    _pair_observations(np.ascontiguousarray(ti, np.int64), np.ascontiguousarray(ki, np.int64),
+                       *(np.ascontiguousarray(a, np.float64) for a in (position, normal, centres, geometry["wo"],
+                                                                        geometry["x"], geometry["y"], geometry["dist"],
+                                                                        geometry["cos_o"], focal)),
+                       *(np.ascontiguousarray(a, np.float32) for a in (images, coverage, distances)),
+                       float(min_coverage), float(ray_offset), float(footprint_slack),
+                       *(out[name] for name in ("radiance", "weight", "usable", "finite", "origins", "directions",
+                                                "lengths")))
+    return out
+
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
 def _edge_free_distances(distances, jump, out):  # pragma: no cover - compiled

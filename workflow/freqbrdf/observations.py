@@ -413,7 +413,7 @@ def observe(
         Depth tolerance of the footprint test in pixel footprints, divided by
         cos(theta_o) (a surface seen at a grazing angle changes depth fast).
     compiled : bool
-        Use the compiled kernels of `view_geometry` and `pixel_reads` (default)
+        Use the compiled kernels of `view_geometry` and `pair_observations` (default)
         instead of their NumPy references (same observations).
 
     Returns
@@ -423,26 +423,21 @@ def observe(
         ``incoming`` (T, K, 3), float32, and ``nonfinite`` (int): pairs dropped
         because a pixel read was NaN or infinite.
     """
-    n_tex, n_views = len(texels), len(cameras)
     geometry = view_geometry(texels, cameras, incoming_map, compiled=compiled)
-    ti, ki = np.nonzero(geometry["candidate"])
-    usable, finite, values = pixel_reads(geometry, ti, ki, cameras, images, coverage, distances,
-                                         min_coverage=min_coverage, ray_offset=ray_offset,
-                                         footprint_slack=footprint_slack, compiled=compiled)
-    # Rays only for the pairs the pixel tests keep (every test is per pair, so the order
-    # of the tests does not change which pairs pass).
-    ti, ki, finite, values = ti[usable], ki[usable], finite[usable], values[usable]
-    origins = texels.position[ti] + ray_offset * texels.normal[ti]
-    seen = ~occluded(origins, geometry["wo"][ti, ki], np.linalg.norm(cameras.centres[ki] - origins, axis=1))
-    keep = seen & finite
-    ti, ki = ti[keep], ki[keep]
-
-    radiance = np.zeros((n_tex, n_views, 3), np.float32)
-    radiance[ti, ki] = values[keep]
-    weight = np.zeros((n_tex, n_views), np.float32)
-    weight[ti, ki] = geometry["cos_o"][ti, ki]
+    ki, ti = np.nonzero(geometry["candidate"].T)  # view-major: consecutive reads hit the same image
+    pairs = pair_observations(geometry, ti, ki, texels, cameras, images, coverage, distances,
+                              min_coverage=min_coverage, ray_offset=ray_offset, footprint_slack=footprint_slack,
+                              compiled=compiled)
+    # Rays only for the pairs the pixel tests keep (every test is per pair, so their
+    # order does not change which pairs pass); a blocked pair is unobserved again.
+    usable = pairs["usable"]
+    blocked = occluded(pairs["origins"][usable], pairs["directions"][usable], pairs["lengths"][usable])
+    tb, kb = ti[usable][blocked], ki[usable][blocked]
+    radiance, weight = pairs["radiance"], pairs["weight"]
+    radiance[tb, kb] = 0.0
+    weight[tb, kb] = 0.0
     return {"radiance": radiance, "weight": weight, "wo_local": geometry["wo_local"],
-            "incoming": geometry["incoming"], "nonfinite": int((seen & ~finite).sum())}
+            "incoming": geometry["incoming"], "nonfinite": int((~pairs["finite"][usable] & ~blocked).sum())}
 
 
 def view_geometry(
@@ -494,20 +489,20 @@ def view_geometry(
     }
 
 
-def pixel_reads(
-    geometry: dict[str, np.ndarray], ti: np.ndarray, ki: np.ndarray, cameras: Cameras, images: np.ndarray,
-    coverage: np.ndarray, distances: np.ndarray | None, *, min_coverage: float, ray_offset: float,
-    footprint_slack: float, compiled: bool = True,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """What the views show of P (texel, view) pairs, and whether it shows the texel alone.
+def pair_observations(
+    geometry: dict[str, np.ndarray], ti: np.ndarray, ki: np.ndarray, texels: SurfaceTexels, cameras: Cameras,
+    images: np.ndarray, coverage: np.ndarray, distances: np.ndarray | None, *, min_coverage: float,
+    ray_offset: float, footprint_slack: float, compiled: bool = True,
+) -> dict[str, np.ndarray]:
+    """What the views show of P candidate (texel, view) pairs, before the visibility test.
 
     Parameters
     ----------
     geometry : dict
-        `view_geometry` of the chunk.
+        `view_geometry` of the T texels.
     ti, ki : ndarray, shape (P,), int
-        Texel and view of each pair.
-    cameras, images, coverage, distances, min_coverage, ray_offset, footprint_slack
+        Texel and view of each pair (each pair once).
+    texels, cameras, images, coverage, distances, min_coverage, ray_offset, footprint_slack
         As in `observe`.
     compiled : bool
         Use the fused kernel of `freqbrdf.observation_kernels` (default) instead
@@ -515,28 +510,35 @@ def pixel_reads(
 
     Returns
     -------
-    usable : ndarray, shape (P,), bool
-        The object mask covers the bilinear footprint and, with ``distances``,
-        every pixel of it sees the texel's own surface.
-    finite : ndarray, shape (P,), bool
-        Every pixel read is finite.
-    radiance : ndarray, shape (P, 3), float32
-        Bilinear pixel value (non-finite pixels read as 0).
+    dict
+        ``usable`` (P,) bool: the object mask covers the bilinear footprint and,
+        with ``distances``, every pixel of it sees the texel's own surface;
+        ``finite`` (P,) bool: every pixel read is finite; ``radiance`` (T, K, 3)
+        and ``weight`` (T, K), float32: the bilinear pixel value and cos(theta_o)
+        of the usable, finite pairs, 0 elsewhere; ``origins``, ``directions``
+        (P, 3) and ``lengths`` (P,): the segment from just off the surface to the
+        camera that `observe` tests for occluders.
     """
-    dist, cos_o, x, y = (geometry[name] for name in ("dist", "cos_o", "x", "y"))
     if compiled:
-        from .observation_kernels import pixel_reads as kernel  # imports numba: only where it runs
+        from .observation_kernels import pair_observations as kernel  # imports numba: only where it runs
 
-        return kernel(ti, ki, x, y, dist, cos_o, cameras.K[:, 0, 0], images, coverage, distances,
-                      min_coverage, ray_offset, footprint_slack)
-    x, y = x[ti, ki], y[ti, ki]
+        return kernel(ti, ki, texels.position, texels.normal, cameras.centres, cameras.K[:, 0, 0], geometry, images,
+                      coverage, distances, min_coverage, ray_offset, footprint_slack)
+    dist, cos_o = geometry["dist"][ti, ki], geometry["cos_o"][ti, ki]
+    x, y = geometry["x"][ti, ki], geometry["y"][ti, ki]
     mask, _ = bilinear_views(coverage, ki, x, y)
     usable = mask >= min_coverage
     if distances is not None:
-        d_texel = dist[ti, ki]
-        pixel_size = d_texel / cameras.K[ki, 0, 0]  # world size of one pixel at the texel
-        slack = ray_offset + footprint_slack * pixel_size / np.maximum(cos_o[ti, ki], 0.1)
-        gap = np.abs(_footprint_distances(distances, ki, x, y) - d_texel[:, None])
+        pixel_size = dist / cameras.K[ki, 0, 0]  # world size of one pixel at the texel
+        slack = ray_offset + footprint_slack * pixel_size / np.maximum(cos_o, 0.1)
+        gap = np.abs(_footprint_distances(distances, ki, x, y) - dist[:, None])
         usable &= (gap <= slack[:, None]).all(axis=1)  # NaN (edge pixels) fails
     values, finite = bilinear_views(images, ki, x, y)
-    return usable, finite, values.astype(np.float32)
+    seen = usable & finite
+    radiance = np.zeros(geometry["x"].shape + (3,), np.float32)
+    radiance[ti[seen], ki[seen]] = values[seen]
+    weight = np.zeros(geometry["x"].shape, np.float32)
+    weight[ti[seen], ki[seen]] = cos_o[seen]
+    origins = texels.position[ti] + ray_offset * texels.normal[ti]
+    return {"usable": usable, "finite": finite, "radiance": radiance, "weight": weight, "origins": origins,
+            "directions": geometry["wo"][ti, ki], "lengths": np.linalg.norm(cameras.centres[ki] - origins, axis=1)}
