@@ -84,8 +84,12 @@ def _view_geometry(position, normal, frame, centres, rotation, translation, intr
             r0 = min(max(int(math.floor(row)), 0), env_h - 2)
             c0 = int(math.floor(col))
             fr, fc = row - r0, col - c0
-            c1 = (c0 + 1) % env_w
-            c0 = c0 % env_w
+            c1 = c0 + 1
+            # np.mod(c, W), dividing only at the seam (c0 = -1 or c1 = W), not for every pair
+            if c0 < 0 or c0 >= env_w:
+                c0 %= env_w
+            if c1 < 0 or c1 >= env_w:
+                c1 %= env_w
             for ch in range(n_ch):
                 top = envmap[r0, c0, ch] * (1.0 - fc) + envmap[r0, c1, ch] * fc
                 bottom = envmap[r0 + 1, c0, ch] * (1.0 - fc) + envmap[r0 + 1, c1, ch] * fc
