@@ -35,8 +35,13 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["view_geometry", "pair_observations", "edge_free_distances", "nearest_faces"]
+__all__ = ["set_threads", "view_geometry", "pair_observations", "edge_free_distances", "nearest_faces"]
 
+
+def set_threads(workers: int) -> None:
+    """Use ``workers`` threads (at most numba's configured maximum) in the kernels, e.g. the
+    job's Snakemake ``threads`` (numba would otherwise take every core of the machine)."""
+    numba.set_num_threads(max(1, min(int(workers), numba.config.NUMBA_NUM_THREADS)))
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
 def _view_geometry(position, normal, frame, centres, rotation, translation, intrinsics, width, height, envmap,

@@ -18,6 +18,7 @@ from freqbrdf.io import atomic_directory, read_exr, read_json, read_views
 from freqbrdf.logs import run_script
 from freqbrdf.meshes import read_ply
 from freqbrdf.mitsuba_setup import setup_mitsuba
+from freqbrdf.observation_kernels import set_threads as set_kernel_threads
 from freqbrdf.observations import (
     band_limit_parameter,
     band_limited_envmap,
@@ -31,6 +32,7 @@ from freqbrdf.raycast import distance_maps, mesh_scene, occlusion_test
 
 def main(smk, log):
     mi = setup_mitsuba(threads=smk.threads)
+    set_kernel_threads(smk.threads)
     settings = smk.params.settings
     with atomic_directory(smk.output[0]) as tmp:
         _extract(mi, smk, log, settings, tmp)
