@@ -210,24 +210,24 @@ def test_compiled_view_geometry_equals_the_numpy_reference(meshes):
         np.testing.assert_allclose(fast[name], ref[name], rtol=1e-6, atol=1e-7, err_msg=name)
 
 
-@pytest.mark.parametrize("with_distances", [True, False])
-def test_compiled_observe_equals_the_numpy_reference(meshes, with_distances):
+@pytest.mark.parametrize("with_distances, dtype", [(True, np.float32), (False, np.float32), (True, np.float64)])
+def test_compiled_observe_equals_the_numpy_reference(meshes, with_distances, dtype):
     """Both paths of `observe` on synthetic views with NaN/Inf pixels, a partial mask, depth
     maps with NaN edges and a stand-in occlusion test: the same observations and count."""
     mesh, _ = meshes["die"]
     texels = rasterise_uv(mesh, 48)
     cameras = _cameras(np.concatenate([hemisphere_rig(5, 4.0), look_at(np.array([0.3, 0.2, 1.3]))[None]]))
     rng = np.random.default_rng(4)
-    images = rng.uniform(0.0, 2.0, size=(len(cameras), SIZE, SIZE, 3)).astype(np.float32)
+    images = rng.uniform(0.0, 2.0, size=(len(cameras), SIZE, SIZE, 3)).astype(dtype)
     images[rng.uniform(size=images.shape) < 0.01] = np.nan
     images[rng.uniform(size=images.shape) < 0.01] = np.inf
-    coverage = np.clip(rng.uniform(0.9, 1.3, size=(len(cameras), SIZE, SIZE)), 0, 1).astype(np.float32)
+    coverage = np.clip(rng.uniform(0.9, 1.3, size=(len(cameras), SIZE, SIZE)), 0, 1).astype(dtype)
     _, depth = project(texels.position, cameras.K, cameras.world_to_camera)  # plausible distances
-    distances = np.full((len(cameras), SIZE, SIZE), np.median(depth), np.float32)
-    distances += rng.normal(0.0, 0.05, size=distances.shape).astype(np.float32)
+    distances = np.full((len(cameras), SIZE, SIZE), np.median(depth), dtype)
+    distances += rng.normal(0.0, 0.05, size=distances.shape).astype(dtype)
     distances[rng.uniform(size=distances.shape) < 0.05] = np.nan
     occluded = lambda origins, directions, lengths: origins[:, 0] + 0.5 * directions[:, 1] > 0.4  # noqa: E731
-    env = rng.uniform(0.0, 5.0, size=(9, 18, 3)).astype(np.float32)
+    env = rng.uniform(0.0, 5.0, size=(9, 18, 3)).astype(dtype)
     kwargs = {"distances": distances if with_distances else None, "min_coverage": 0.95, "footprint_slack": 40.0}
     fast = observe(texels, cameras, images, coverage, env, occluded, **kwargs)
     ref = observe(texels, cameras, images, coverage, env, occluded, **kwargs, compiled=False)

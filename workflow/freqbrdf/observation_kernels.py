@@ -38,6 +38,12 @@ import numpy as np
 __all__ = ["set_threads", "view_geometry", "pair_observations", "edge_free_distances", "nearest_faces"]
 
 
+def _floats(array: np.ndarray) -> np.ndarray:
+    """``array`` C-contiguous, float32 or float64 as given (the kernels compile for each,
+    so their arithmetic matches NumPy's on the same values); other types as float64."""
+    array = np.asarray(array)
+    return np.ascontiguousarray(array, array.dtype if array.dtype in (np.float32, np.float64) else np.float64)
+
 def set_threads(workers: int) -> None:
     """Use ``workers`` threads (at most numba's configured maximum) in the kernels, e.g. the
     job's Snakemake ``threads`` (numba would otherwise take every core of the machine)."""
@@ -118,7 +124,7 @@ def view_geometry(position: np.ndarray, normal: np.ndarray, frame: np.ndarray, c
         OpenCV cameras.
     width, height : int
         Image size (pixels).
-    envmap : ndarray, shape (He, We, C), float32
+    envmap : ndarray, shape (He, We, C)
         Equirectangular map (band-limited light), read bilinearly as
         `freqbrdf.observations.sample_equirect` does.
 
@@ -140,8 +146,7 @@ def view_geometry(position: np.ndarray, normal: np.ndarray, frame: np.ndarray, c
     f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (position, normal, frame, centres)]
     _view_geometry(*f64, np.ascontiguousarray(world_to_camera[:, :3, :3], dtype=np.float64),
                    np.ascontiguousarray(world_to_camera[:, :3, 3], dtype=np.float64),
-                   np.ascontiguousarray(intrinsics, dtype=np.float64), int(width), int(height),
-                   np.ascontiguousarray(envmap, dtype=np.float32),
+                   np.ascontiguousarray(intrinsics, dtype=np.float64), int(width), int(height), _floats(envmap),
                    out["dist"], out["wo"], out["cos_o"], out["x"], out["y"], out["candidate"], out["wo_local"],
                    out["incoming"])
     return out
@@ -210,8 +215,8 @@ def pair_observations(ti: np.ndarray, ki: np.ndarray, position: np.ndarray, norm
         Focal length of each view, in pixels.
     geometry : dict
         ``wo`` (T, K, 3), ``x``, ``y``, ``dist``, ``cos_o`` (T, K) of `view_geometry`.
-    images, coverage : ndarray, shape (K, H, W, C) and (K, H, W), float32
-    distances : ndarray, shape (K, H, W), float32, or None
+    images, coverage : ndarray, shape (K, H, W, C) and (K, H, W)
+    distances : ndarray, shape (K, H, W), or None
         Pixel-centre distances, NaN near edges; None skips the footprint test.
     min_coverage, ray_offset, footprint_slack : float
         As in `freqbrdf.observations.observe`.
@@ -233,7 +238,7 @@ def pair_observations(ti: np.ndarray, ki: np.ndarray, position: np.ndarray, norm
                        *(np.ascontiguousarray(a, np.float64) for a in (position, normal, centres, geometry["wo"],
                                                                         geometry["x"], geometry["y"], geometry["dist"],
                                                                         geometry["cos_o"], focal)),
-                       *(np.ascontiguousarray(a, np.float32) for a in (images, coverage, distances)),
+                       *(_floats(a) for a in (images, coverage, distances)),
                        float(min_coverage), float(ray_offset), float(footprint_slack),
                        *(out[name] for name in ("radiance", "weight", "usable", "finite", "origins", "directions",
                                                 "lengths")))
@@ -260,10 +265,8 @@ def _edge_free_distances(distances, jump, out):  # pragma: no cover - compiled
 def edge_free_distances(distances: np.ndarray, jump: float) -> np.ndarray:
     """``distances`` (K, H, W) with NaN within one pixel of a depth step above ``jump`` or of a
     non-finite value, float32 (as `freqbrdf.observations.edge_free_distances`)."""
-    distances = np.asarray(distances)
-    out = np.empty(distances.shape, np.float32)
-    _edge_free_distances(np.ascontiguousarray(distances, np.float32 if distances.dtype == np.float32 else np.float64),
-                         float(jump), out)
+    out = np.empty(np.shape(distances), np.float32)
+    _edge_free_distances(_floats(distances), float(jump), out)
     return out
 
 @numba.njit(cache=True, error_model="numpy")

@@ -472,7 +472,7 @@ def view_geometry(
         from .observation_kernels import view_geometry as kernel  # imports numba: only where it runs
 
         return kernel(texels.position, texels.normal, frame, cameras.centres, cameras.world_to_camera, cameras.K,
-                      cameras.width, cameras.height, np.asarray(incoming_map, np.float32))
+                      cameras.width, cameras.height, incoming_map)
     p, n = texels.position, texels.normal
     to_cam = cameras.centres[None, :, :] - p[:, None, :]  # (T, K, 3)
     dist = np.linalg.norm(to_cam, axis=-1)
