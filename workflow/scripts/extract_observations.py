@@ -9,7 +9,9 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import functools
+import multiprocessing
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from freqbrdf.artefacts import ObservationsWriter
@@ -26,19 +28,24 @@ from freqbrdf.observations import (
     observe,
     rasterise_uv,
 )
-from freqbrdf.plots import coverage_figure
+from freqbrdf.plots import coverage_figure, pyplot
 from freqbrdf.raycast import distance_maps, mesh_scene, occlusion_test
 
 
 def main(smk, log):
-    mi = setup_mitsuba(threads=smk.threads)
-    set_kernel_threads(smk.threads)
-    settings = smk.params.settings
-    with atomic_directory(smk.output[0]) as tmp:
-        _extract(mi, smk, log, settings, tmp)
+    # The coverage figure is drawn by a child process that imports matplotlib while this
+    # one sets up Mitsuba and numba and reads the views (mostly on one core of the job's
+    # two); forked now, before either starts its thread pool.
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as figures:
+        figures.submit(pyplot)
+        mi = setup_mitsuba(threads=smk.threads)
+        set_kernel_threads(smk.threads)
+        settings = smk.params.settings
+        with atomic_directory(smk.output[0]) as tmp:
+            _extract(mi, smk, log, settings, tmp, figures)
 
 
-def _extract(mi, smk, log, settings, tmp):
+def _extract(mi, smk, log, settings, tmp, figures):
     start = time.perf_counter()
     cameras_file = Path(smk.input.poses) / "cameras.json"
     cameras = cameras_from_json(read_json(cameras_file), source=cameras_file)
@@ -80,8 +87,8 @@ def _extract(mi, smk, log, settings, tmp):
         "nonfinite_pixels": nonfinite_pixels,
         "nonfinite_pairs_dropped": nonfinite_pairs,
     })
-    coverage_figure(tmp / "coverage.png", texels.resolution, texels.texel, views_per_texel,
-                    f"{smk.wildcards.object} / {smk.wildcards.env} ({smk.wildcards.poses} poses)")
+    figures.submit(coverage_figure, tmp / "coverage.png", texels.resolution, texels.texel, views_per_texel,
+                   f"{smk.wildcards.object} / {smk.wildcards.env} ({smk.wildcards.poses} poses)").result()
     log.info("mean %.1f views per texel, %d texels unobserved; %.1f s in all",
              views_per_texel.mean(), (views_per_texel == 0).sum(), time.perf_counter() - start)
 
