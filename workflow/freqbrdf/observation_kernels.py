@@ -44,10 +44,12 @@ def _floats(array: np.ndarray) -> np.ndarray:
     array = np.asarray(array)
     return np.ascontiguousarray(array, array.dtype if array.dtype in (np.float32, np.float64) else np.float64)
 
+
 def set_threads(workers: int) -> None:
     """Use ``workers`` threads (at most numba's configured maximum) in the kernels, e.g. the
     job's Snakemake ``threads`` (numba would otherwise take every core of the machine)."""
     numba.set_num_threads(max(1, min(int(workers), numba.config.NUMBA_NUM_THREADS)))
+
 
 @numba.njit(parallel=True, cache=True, error_model="numpy")
 def _view_geometry(position, normal, frame, centres, rotation, translation, intrinsics, width, height, envmap,
@@ -131,7 +133,7 @@ def view_geometry(position: np.ndarray, normal: np.ndarray, frame: np.ndarray, c
     Returns
     -------
     dict
-        As `freqbrdf.observations.view_geometry_reference`: ``dist`` (T, K),
+        As `freqbrdf.observations.view_geometry`: ``dist`` (T, K),
         ``wo`` (T, K, 3), ``cos_o``, ``x``, ``y`` (T, K) float64, ``candidate``
         (T, K) bool, ``wo_local`` and ``incoming`` (T, K, 3) float32.
     """
