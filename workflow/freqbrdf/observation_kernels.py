@@ -17,10 +17,10 @@ with:
   (`freqbrdf.observations.rasterise_uv`).
 
 The arithmetic follows the NumPy code operation by operation (same order of
-sums, no fused multiply-adds), so the results agree bit for bit except where
-``acos``/``atan2`` of the platform's libm and NumPy's vectorised versions
-differ in the last bit of an angle, which moves a bilinear weight by about
-1e-16.
+sums, `_dot3` for einsum's, no fused multiply-adds), so the results agree bit
+for bit, except where ``acos``/``atan2`` of the platform's libm and NumPy's
+vectorised versions differ in the last bit of an angle, which moves a bilinear
+weight of the incoming light by about 1e-16.
 
 The kernels are compiled on first use and cached on disk (numba ``cache=True``).
 Each output element is written by exactly one iteration of the parallel loop,
@@ -51,6 +51,12 @@ def set_threads(workers: int) -> None:
     numba.set_num_threads(max(1, min(int(workers), numba.config.NUMBA_NUM_THREADS)))
 
 
+@numba.njit(cache=True, inline="always")
+def _dot3(a0, a1, a2, b0, b1, b2):  # pragma: no cover - compiled
+    """a . b summed as NumPy's einsum sums three products, (0 + 2) + 1 (its two SIMD lanes),
+    so the kernels reproduce the reference's last bits."""
+    return (a0 * b0 + a2 * b2) + a1 * b1
+
 @numba.njit(parallel=True, cache=True, error_model="numpy")
 def _view_geometry(position, normal, frame, centres, rotation, translation, intrinsics, width, height, envmap,
                    dist, wo, cos_o, x, y, candidate, wo_local, incoming):  # pragma: no cover - compiled
@@ -63,24 +69,24 @@ def _view_geometry(position, normal, frame, centres, rotation, translation, intr
         for k in range(n_views):
             # direction and distance to the camera
             tx, ty, tz = centres[k, 0] - px, centres[k, 1] - py, centres[k, 2] - pz
-            d = math.sqrt(tx * tx + ty * ty + tz * tz)
+            d = math.sqrt(tx * tx + ty * ty + tz * tz)  # np.linalg.norm's order
             wx, wy, wz = tx / d, ty / d, tz / d
-            c = wx * nx + wy * ny + wz * nz
+            c = _dot3(wx, wy, wz, nx, ny, nz)
             dist[t, k], cos_o[t, k] = d, c
             wo[t, k, 0], wo[t, k, 1], wo[t, k, 2] = wx, wy, wz
             # projection (freqbrdf.cameras.project)
-            cam0 = rotation[k, 0, 0] * px + rotation[k, 0, 1] * py + rotation[k, 0, 2] * pz + translation[k, 0]
-            cam1 = rotation[k, 1, 0] * px + rotation[k, 1, 1] * py + rotation[k, 1, 2] * pz + translation[k, 1]
-            cam2 = rotation[k, 2, 0] * px + rotation[k, 2, 1] * py + rotation[k, 2, 2] * pz + translation[k, 2]
-            u = intrinsics[k, 0, 0] * cam0 + intrinsics[k, 0, 1] * cam1 + intrinsics[k, 0, 2] * cam2
-            v = intrinsics[k, 1, 0] * cam0 + intrinsics[k, 1, 1] * cam1 + intrinsics[k, 1, 2] * cam2
-            w = intrinsics[k, 2, 0] * cam0 + intrinsics[k, 2, 1] * cam1 + intrinsics[k, 2, 2] * cam2
+            cam0 = _dot3(rotation[k, 0, 0], rotation[k, 0, 1], rotation[k, 0, 2], px, py, pz) + translation[k, 0]
+            cam1 = _dot3(rotation[k, 1, 0], rotation[k, 1, 1], rotation[k, 1, 2], px, py, pz) + translation[k, 1]
+            cam2 = _dot3(rotation[k, 2, 0], rotation[k, 2, 1], rotation[k, 2, 2], px, py, pz) + translation[k, 2]
+            u = _dot3(intrinsics[k, 0, 0], intrinsics[k, 0, 1], intrinsics[k, 0, 2], cam0, cam1, cam2)
+            v = _dot3(intrinsics[k, 1, 0], intrinsics[k, 1, 1], intrinsics[k, 1, 2], cam0, cam1, cam2)
+            w = _dot3(intrinsics[k, 2, 0], intrinsics[k, 2, 1], intrinsics[k, 2, 2], cam0, cam1, cam2)
             xk, yk = u / w, v / w
             x[t, k], y[t, k] = xk, yk
             candidate[t, k] = ((cam2 > 0) & (xk >= 0.5) & (xk <= width - 0.5) & (yk >= 0.5) & (yk <= height - 0.5)
                                & (c > 0.0))
             for i in range(3):
-                wo_local[t, k, i] = frame[t, i, 0] * wx + frame[t, i, 1] * wy + frame[t, i, 2] * wz
+                wo_local[t, k, i] = _dot3(frame[t, i, 0], frame[t, i, 1], frame[t, i, 2], wx, wy, wz)
             # mirror direction and the light along it (observations.sample_equirect)
             two_c = 2.0 * c
             rx, ry, rz = two_c * nx - wx, two_c * ny - wy, two_c * nz - wz
