@@ -79,6 +79,8 @@ def _extract(mi, smk, log, settings, tmp, figures):
         log.info("texels %d-%d of %d observed (%.1f s elapsed)", s, min(s + chunk, n_tex), n_tex,
                  time.perf_counter() - start)
     views_per_texel = writer.views_per_texel()
+    figure = figures.submit(coverage_figure, tmp / "coverage.png", texels.resolution, texels.texel, views_per_texel,
+                            f"{smk.wildcards.object} / {smk.wildcards.env} ({smk.wildcards.poses} poses)")
     writer.close({
         "poses": smk.wildcards.poses,
         "band_limit": {"rule": settings["band_limit"], "a_prime": a_prime},
@@ -87,8 +89,7 @@ def _extract(mi, smk, log, settings, tmp, figures):
         "nonfinite_pixels": nonfinite_pixels,
         "nonfinite_pairs_dropped": nonfinite_pairs,
     })
-    figures.submit(coverage_figure, tmp / "coverage.png", texels.resolution, texels.texel, views_per_texel,
-                   f"{smk.wildcards.object} / {smk.wildcards.env} ({smk.wildcards.poses} poses)").result()
+    figure.result()  # drawn while the arrays were flushed
     log.info("mean %.1f views per texel, %d texels unobserved; %.1f s in all",
              views_per_texel.mean(), (views_per_texel == 0).sum(), time.perf_counter() - start)
 
