@@ -217,6 +217,28 @@ def test_eval_sh_shapes_and_values():
     np.testing.assert_allclose(f3, y @ c3, rtol=1e-13, atol=1e-13)
 
 
+def test_equirect_factors_multiply_to_real_sh_on_the_grid():
+    h, w, lmax = 9, 14, 5
+    polar, azimuthal = sh.equirect_factors(h, w, lmax)
+    y = sh.real_sh(sh.equirect_directions(h, w), lmax)  # (h, w, n)
+    for l in range(lmax + 1):
+        for m in range(-l, l + 1):
+            np.testing.assert_allclose(polar[:, None, m + lmax, l] * azimuthal[None, :, m + lmax],
+                                       y[..., sh.sh_index(l, m)], rtol=0, atol=1e-13)
+    assert np.all(polar[:, 0, :lmax] == 0.0)  # l < |m| is absent
+
+
+@pytest.mark.parametrize("h, w", [(64, 128), (33, 20)])
+def test_filter_equirect_equals_projection_then_evaluation(h, w):
+    """The separable filter against the direct sums over every pixel and coefficient."""
+    rng = np.random.default_rng(8)
+    img = rng.gamma(0.5, size=(h, w, 3))  # rough: energy up to the grid's limit
+    gains = np.exp(-((0.3 * np.arange(LMAX + 1)) ** 2))
+    direct = sh.eval_sh(sh.project_equirect(img, LMAX) * gains[sh.sh_degrees(LMAX)][:, None],
+                        sh.equirect_directions(h, w))
+    np.testing.assert_allclose(sh.filter_equirect(img, gains), direct, rtol=0, atol=1e-12 * np.abs(direct).max())
+
+
 # --------------------------------------------------------------------------
 # power spectrum
 # --------------------------------------------------------------------------

@@ -48,7 +48,9 @@ def occlusion_test(
     return out
 
 
-def distance_maps(mi: ModuleType, scene, K: np.ndarray, world_to_camera: np.ndarray, width: int, height: int) -> np.ndarray:
+def distance_maps(
+    mi: ModuleType, scene, K: np.ndarray, world_to_camera: np.ndarray, width: int, height: int, chunk: int = 1 << 21
+) -> np.ndarray:
     """Distance from each camera to the first surface seen through each pixel centre.
 
     Parameters
@@ -60,6 +62,9 @@ def distance_maps(mi: ModuleType, scene, K: np.ndarray, world_to_camera: np.ndar
         OpenCV cameras.
     width, height : int
         Image size.
+    chunk : int
+        Rays traced per batch (bounds memory); whole views are batched together,
+        since one large ray cast costs far less than many small ones.
 
     Returns
     -------
@@ -68,14 +73,23 @@ def distance_maps(mi: ModuleType, scene, K: np.ndarray, world_to_camera: np.ndar
     """
     jj, ii = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
     pixels = np.stack([jj.ravel(), ii.ravel(), np.ones(jj.size)], axis=1)
+    n_pix = len(pixels)
     out = np.empty((len(K), height, width), np.float32)
-    for k in range(len(K)):
-        R, t = world_to_camera[k, :3, :3], world_to_camera[k, :3, 3]
-        dirs = pixels @ np.linalg.inv(K[k]).T @ R  # camera rays rotated to world: R^T d
-        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-        origin = (-R.T @ t).astype(np.float32)
-        d = dirs.astype(np.float32)
-        ray = mi.Ray3f(mi.Point3f(*[np.full(len(d), c, np.float32) for c in origin]), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
+    per_batch = max(1, chunk // n_pix)
+    for start in range(0, len(K), per_batch):
+        views = range(start, min(start + per_batch, len(K)))
+        # component-major (Dr.Jit takes one contiguous array per coordinate)
+        o = np.empty((3, len(views) * n_pix), np.float32)
+        d = np.empty((3, len(views) * n_pix), np.float32)
+        for i, k in enumerate(views):
+            R, t = world_to_camera[k, :3, :3], world_to_camera[k, :3, 3]
+            rays = pixels @ np.linalg.inv(K[k]).T @ R  # camera rays rotated to world: R^T d
+            # |rays| summed as np.linalg.norm does, without its slow reduction over 3-vectors
+            length = np.sqrt(np.square(rays[:, 0]) + np.square(rays[:, 1]) + np.square(rays[:, 2]))
+            for c in range(3):
+                np.divide(rays[:, c], length, out=d[c, i * n_pix : (i + 1) * n_pix], casting="same_kind")
+            o[:, i * n_pix : (i + 1) * n_pix] = (-R.T @ t)[:, None]
+        ray = mi.Ray3f(mi.Point3f(o[0], o[1], o[2]), mi.Vector3f(d[0], d[1], d[2]))
         hit = np.array(scene.ray_intersect_preliminary(ray).t, dtype=np.float32)
-        out[k] = hit.reshape(height, width)
+        out[views.start : views.stop] = hit.reshape(len(views), height, width)
     return out

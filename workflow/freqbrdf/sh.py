@@ -74,6 +74,8 @@ __all__ = [
     "equirect_directions",
     "equirect_solid_angles",
     "project_equirect",
+    "equirect_factors",
+    "filter_equirect",
     "power_spectrum",
     "fibonacci_sphere",
     "fibonacci_hemisphere",
@@ -473,6 +475,80 @@ def project_equirect(image: np.ndarray, lmax: int) -> np.ndarray:
     for start, stop, y_blk in _sh_blocks(d_flat, lmax):
         acc += y_blk @ weighted[start:stop]
     return acc
+
+
+def equirect_factors(height: int, width: int, lmax: int) -> tuple[np.ndarray, np.ndarray]:
+    """The real SH on an equirectangular grid as products of a polar and an azimuthal factor.
+
+    Every pixel of a row shares its polar angle and every pixel of a column its
+    azimuth, so ``Y_lm(theta_i, phi_j) = polar[i, m + lmax, l] * azimuthal[j, m + lmax]``
+    on the grid of `equirect_directions`.
+
+    Parameters
+    ----------
+    height, width : int
+        Map size ``H >= 2``, ``W >= 1``.
+    lmax : int
+        Maximum degree, ``>= 0``.
+
+    Returns
+    -------
+    polar : numpy.ndarray
+        Shape ``(H, 2 lmax + 1, lmax + 1)``: ``Y_l|m|`` at azimuth 0 (where the
+        azimuthal factor of ``m >= 0`` is 1), 0 where ``l < |m|``.
+    azimuthal : numpy.ndarray
+        Shape ``(W, 2 lmax + 1)``: ``cos(m phi_j)`` for ``m > 0``, 1 for ``m = 0``
+        and ``sin(|m| phi_j)`` for ``m < 0`` (the sign convention of `real_sh`).
+    """
+    height, width = _check_grid(height, width)
+    lmax = check_int(lmax, "lmax", 0)
+    ct, st = _row_cos_sin(height)
+    # azimuth 0 is the direction (0, cos theta, -sin theta)
+    y = real_sh(np.stack([np.zeros(height), ct, -st], axis=-1), lmax)  # (H, n_coeffs)
+    m = np.arange(-lmax, lmax + 1)
+    polar = np.zeros((height, m.size, lmax + 1))
+    for l in range(lmax + 1):
+        polar[:, m[lmax - l : lmax + l + 1] + lmax, l] = y[:, l * l + l + np.abs(m[lmax - l : lmax + l + 1])]
+    phi = 2.0 * np.pi * (np.arange(width) + 0.5) / width
+    mphi = np.abs(m)[None, :] * phi[:, None]
+    azimuthal = np.where(m > 0, np.cos(mphi), np.where(m < 0, np.sin(mphi), 1.0))
+    return polar, azimuthal
+
+
+def filter_equirect(image: np.ndarray, gains: np.ndarray) -> np.ndarray:
+    """An equirectangular map with each SH degree ``l`` scaled by ``gains[l]``.
+
+    Equal to ``eval_sh(project_equirect(image, lmax) * gains[sh_degrees(lmax)][:, None],
+    equirect_directions(H, W))`` with ``lmax = len(gains) - 1`` (to rounding), but
+    computed through `equirect_factors`: a sum over columns per order ``m``, then
+    over rows per degree, and back, which costs O(H W lmax) instead of
+    O(H W lmax^2).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        Shape ``(H, W, C)``, ``H >= 2``.
+    gains : numpy.ndarray
+        Shape ``(lmax + 1,)``: factor of each degree (e.g. a low-pass filter).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(H, W, C)``, float64: the filtered map on the same grid.
+    """
+    img = np.asarray(image, dtype=np.float64)
+    if img.ndim != 3 or img.shape[0] < 2:
+        raise ValueError(f"image must have shape (H, W, C) with H >= 2, got shape {img.shape}")
+    gains = np.asarray(gains, dtype=np.float64)
+    if gains.ndim != 1 or gains.size < 1:
+        raise ValueError(f"gains must have shape (lmax + 1,), got shape {gains.shape}")
+    height, width = img.shape[:2]
+    polar, azimuthal = equirect_factors(height, width, gains.size - 1)
+    per_order = img.transpose(0, 2, 1) @ azimuthal  # (H, C, M): sum over each row
+    weighted = polar * equirect_solid_angles(height, width)[:, None, None]
+    coeffs = np.einsum("hml,hcm->mlc", weighted, per_order) * gains[None, :, None]  # (M, L + 1, C)
+    rows = np.einsum("hml,mlc->hcm", polar, coeffs)  # (H, C, M)
+    return (rows @ azimuthal.T).transpose(0, 2, 1)
 
 
 # --------------------------------------------------------------------------
