@@ -86,3 +86,21 @@ def test_a_real_capture_gets_the_documented_defaults(schema, default):
     check_config(default, schema)
     assert default["real_captures"]["pot"] == {"dir": "x", "env": "e", "up_axis": "y", "camera": "opengl",
                                                "align_env": False}
+
+
+def schema_leaves(node: dict, prefix: str = "") -> list[str]:
+    """Dotted names of the schema's leaf keys (keys whose value is not an object with properties);
+    ``additionalProperties`` schemas (named entries such as ``envs.{env}``) count as one leaf."""
+    leaves = []
+    for key, sub in node.get("properties", {}).items():
+        name = f"{prefix}.{key}" if prefix else key
+        leaves += schema_leaves(sub, name) if sub.get("properties") else [name]
+    return leaves
+
+
+def test_every_schema_key_is_documented_in_config_readme(repo, schema):
+    text = (repo / "config" / "README.md").read_text()
+    leaves = schema_leaves(yaml.safe_load(schema.read_text()))
+    assert len(leaves) > 40  # the walk reached the nested sections
+    missing = [name for name in leaves if f"`{name}`" not in text]
+    assert not missing, f"config/README.md does not document {missing}"
