@@ -87,9 +87,11 @@ def test_changing_one_env_reruns_only_what_depends_on_it(repo, run, tmp_path):
     changed.write_text("envs:\n  overcast: {kind: overcast, ground_albedo: 0.4}\n")
     plan = snakemake(repo, run, "-n", extra_config=[changed])
     jobs = planned_jobs(plan.stdout)
-    # every method's relighting under overcast, then the metrics and what reads them
+    # every method's relighting under overcast, then the metrics and what reads them; the
+    # map's .hdr and the viewers that offer it (the synthetic capture's and the imported copy's)
     assert jobs == {"build_env": 1, "env_spectrum": 1, "env_spectra": 1, "render_capture": 1,
-                    "relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "all": 1}
+                    "relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1,
+                    "convergence_figure": 1, "export_env": 1, "viewer": 2, "all": 1}
     assert "results/captures/sphere/overcast/test" in plan.stdout
 
 
