@@ -25,7 +25,7 @@ CAPTURES = SYNTHETIC_CAPTURES + [
 def relight_envs(env, method):
     """Environments a synthetic capture's estimates are relit under (config evaluate.relight_envs).
     held_out leaves out the capture's own environment and, for a merge of all the object's
-    captures (rule merge_svbrdf), every capture environment: the merge has seen them all."""
+    captures (merge_svbrdf), every capture environment: the merge has seen them all."""
     choice = config["evaluate"]["relight_envs"]
     if choice == "held_out":
         seen = CAPTURE_ENVS if METHOD_REGISTRY[method].rule == "merge_svbrdf" else [env]
@@ -40,7 +40,7 @@ RELIGHTS = [(o, e, POSES, m, r) for o, e in SYNTHETIC_CAPTURES for m in METHODS 
 
 
 def relit_dir(o, e, p, m):
-    """Output of rule relight for one estimate: a subdirectory per relighting environment."""
+    """Output of the relighting of one estimate (relight): a subdirectory per relighting environment."""
     return f"results/relight/{o}/{e}/{p}/{m}"
 
 wildcard_constraints:
@@ -127,3 +127,131 @@ def final_outputs():
     outputs += report_outputs()  # rules/report.smk: tables, claims, per-capture figures
     outputs += gltf_outputs()  # rules/export.smk: .glb files, .hdr environments, viewer pages
     return outputs
+
+
+# ---- input functions and targets of rules/estimate.smk
+def optimise_start(wildcards):
+    """The spectrum-only estimate when the optimiser starts from it (optimise.init: spectrum)."""
+    if config["optimise"]["init"] == "spectrum":
+        return {"init": f"results/estimates/{wildcards.object}/{wildcards.env}/{wildcards.poses}/spectrum"}
+    return {}
+
+
+# ---- input functions and targets of rules/evaluate.smk
+def method_benchmarks(o, e, p, m):
+    """Benchmark files of the jobs a method needs once the observations exist, its own rule last."""
+    bench = "results/benchmarks"
+    method = METHOD_REGISTRY[m]
+    estimator = method.rule
+    if estimator == "spectrum_search":
+        return [f"{bench}/fit_sh/{o}_{e}_{p}.tsv", f"{bench}/spectrum_search/{o}_{e}_{p}.tsv"]
+    if method.start is not None:
+        before = method_benchmarks(o, e, p, method.start)
+    elif estimator == "optimise_svbrdf" and config["optimise"]["init"] == "spectrum":
+        before = method_benchmarks(o, e, p, "spectrum")
+    else:
+        before = []
+    return before + [f"{bench}/{estimator}/{o}_{e}_{p}_{m}.tsv"]
+
+
+# ---- input functions and targets of rules/exchange.smk
+def real_capture_outputs():
+    """Every output of the real captures alone (targets of rule real_captures)."""
+    outputs = []
+    for name, capture in REAL_CAPTURES.items():
+        o, e = name, capture["env"]
+        outputs += [f"results/imports/{o}/env_orientation.tsv", f"results/observations/{o}/{e}/{POSES}"]
+        outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for m in METHODS]
+        outputs += [f"results/entropy/{o}/{e}/{POSES}", f"results/figures/{o}/{e}/{POSES}/maps.png"]
+        outputs.append(f"results/tables/real/{o}_{e}_{POSES}_relight.csv")
+        if "textures" in capture:
+            outputs.append(f"results/tables/real/{o}_{e}_{POSES}.csv")
+    return outputs
+
+
+# ---- input functions and targets of rules/export.smk
+def gltf_outputs():
+    """Every .glb, .hdr and viewer page the export rules write (targets of rule all)."""
+    outputs = [f"results/gltf/{o}/{TRUTH_GLTF}.glb" for o in SYNTHETIC_OBJECTS]
+    outputs += [f"results/gltf/{o}/{e}/{POSES}/{m}.glb" for o, e in CAPTURES for m in METHODS]
+    outputs += expand("results/envs/{env}.hdr", env=ENVS)
+    outputs += [f"results/viewer/{o}/{e}/{POSES}/viewer.html" for o, e in CAPTURES]
+    return outputs
+
+
+def viewer_panels(wildcards):
+    """The viewer's panels: the ground truth (synthetic captures only), then every method."""
+    panels = [] if wildcards.object in REAL_CAPTURES else [{"name": TRUTH_GLTF, "label": "Ground truth", "overlay": False}]
+    return panels + [{"name": m, "label": METHOD_REGISTRY[m].label, "overlay": True} for m in METHODS]
+
+
+# ---- input functions and targets of rules/finetune.smk
+def mitsuba_start(wildcards):
+    """The estimate a fine-tuning method starts from (its registry entry's start);
+    the baseline starts from a constant 0.5 (no input)."""
+    start = METHOD_REGISTRY[wildcards.method].start
+    if start is not None:
+        return {"init": f"results/estimates/{wildcards.object}/{wildcards.env}/{wildcards.poses}/{start}"}
+    return {}
+
+
+def mitsuba_evaluation(wildcards):
+    """Ground truth and observed texels of a synthetic capture, against which the run logs
+    its parameter MSE after every epoch (evaluation only: issue 14's equal-accuracy ratio)."""
+    if wildcards.object in REAL_CAPTURES:
+        return {}
+    w = wildcards
+    return {"truth": [object_files(w.object)[n] for n in TEXTURES],
+            "observations": f"results/observations/{w.object}/{w.env}/{w.poses}"}
+
+
+def mitsuba_settings(wildcards):
+    """Optimiser settings of one run: config `mitsuba`, with `mitsuba.finetune`
+    overriding epochs and spp when fine-tuning; a seed per capture and method."""
+    settings = {key: value for key, value in config["mitsuba"].items() if key != "finetune"}
+    if METHOD_REGISTRY[wildcards.method].start is not None:
+        settings.update(config["mitsuba"]["finetune"])
+    settings["seed"] = derived_seed(config["seed"], "mitsuba", wildcards.object, wildcards.env,
+                                    wildcards.poses, wildcards.method)
+    return settings
+
+
+# ---- input functions and targets of rules/merge.smk
+def merge_envs(wildcards):
+    """Environments of every capture of the object, the one the merge is filed under first (ties go to it)."""
+    return [wildcards.env] + [e for o, e in CAPTURES if o == wildcards.object and e != wildcards.env]
+
+
+def merge_inputs(wildcards):
+    """The start method's estimate and the spectrum entropy of every capture of the object (merge_envs order)."""
+    w = wildcards
+    start = METHOD_REGISTRY[w.method].start
+    envs = merge_envs(w)
+    return {"estimates": [f"results/estimates/{w.object}/{e}/{w.poses}/{start}" for e in envs],
+            "entropy": [f"results/entropy/{w.object}/{e}/{w.poses}" for e in envs]}
+
+
+# ---- input functions and targets of rules/report.smk
+def report_outputs():
+    """Every file the report rules write (targets of rule all)."""
+    outputs = [f"results/tables/{t}.{ext}" for t in TABLES for ext in ("md", "tex")]
+    outputs += ["results/tables/tables.md", "results/tables/tables.html", "results/tables/claims.html"]
+    outputs += [f"results/figures/{o}/{e}/{POSES}/maps.png" for o, e in CAPTURES]
+    outputs += [f"results/figures/{o}/{e}/{POSES}/relight.png" for o, e in SYNTHETIC_CAPTURES]
+    outputs += [f"results/figures/{o}/{e}/{POSES}/regulariser.png" for o, e in CAPTURES]
+    outputs += [f"results/views/{o}/{e}/{POSES}/views.png" for o, e in VIEWS_CAPTURES]
+    if CONVERGENCE_CURVES:
+        outputs += [f"results/figures/{o}/{e}/{POSES}/convergence.png" for o, e in SYNTHETIC_CAPTURES]
+    return outputs
+
+
+def capture_relights(wildcards):
+    """(method, relight_env) of every relit image set of one capture, relighting environment-major."""
+    pairs = [(m, r) for o, e, p, m, r in RELIGHTS
+             if (o, e, p) == (wildcards.object, wildcards.env, wildcards.poses)]
+    return sorted(pairs, key=lambda pair: (ENVS.index(pair[1]), METHODS.index(pair[0])))
+
+
+def relight_figure_envs(wildcards):
+    """Relighting environments of one capture's figure, in the order of its references input."""
+    return list(dict.fromkeys(r for _, r in capture_relights(wildcards)))

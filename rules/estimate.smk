@@ -1,10 +1,3 @@
-def optimise_start(wildcards):
-    """The spectrum-only estimate when the optimiser starts from it (optimise.init: spectrum)."""
-    if config["optimise"]["init"] == "spectrum":
-        return {"init": f"results/estimates/{wildcards.object}/{wildcards.env}/{wildcards.poses}/spectrum"}
-    return {}
-
-
 rule optimise_svbrdf:
     """Per-texel SVBRDF by Adam through the frequency-domain forward model; which
     terms the model includes is the method's entry in freqbrdf.methods.METHODS

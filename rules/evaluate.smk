@@ -7,21 +7,6 @@ METRIC_REFERENCES = sorted({(o, r) for o, _, _, _, r in RELIGHTS})
 METRIC_TIMINGS = [(o, e, POSES, m) for o, e in CAPTURES for m in METHODS]
 
 
-def method_benchmarks(o, e, p, m):
-    """Benchmark files of the jobs a method needs once the observations exist, its own rule last."""
-    bench = "results/benchmarks"
-    method = METHOD_REGISTRY[m]
-    if method.rule == "spectrum_search":
-        return [f"{bench}/fit_sh/{o}_{e}_{p}.tsv", f"{bench}/spectrum_search/{o}_{e}_{p}.tsv"]
-    if method.start is not None:
-        before = method_benchmarks(o, e, p, method.start)
-    elif method.rule == "optimise_svbrdf" and config["optimise"]["init"] == "spectrum":
-        before = method_benchmarks(o, e, p, "spectrum")
-    else:
-        before = []
-    return before + [f"{bench}/{method.rule}/{o}_{e}_{p}_{m}.tsv"]
-
-
 rule metrics:
     """Every number of the benchmark in one tidy table: parameter MSE, relighting
     (PSNR-H, PSNR-L, SSIM, MSE), entropy-error correlation, time and memory.

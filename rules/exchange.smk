@@ -169,20 +169,6 @@ rule score_real_relight:
         "../workflow/scripts/score_real_relight.py"
 
 
-def real_capture_outputs():
-    """Every output of the real captures alone (targets of rule real_captures)."""
-    outputs = []
-    for name, capture in REAL_CAPTURES.items():
-        o, e = name, capture["env"]
-        outputs += [f"results/imports/{o}/env_orientation.tsv", f"results/observations/{o}/{e}/{POSES}"]
-        outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for m in METHODS]
-        outputs += [f"results/entropy/{o}/{e}/{POSES}", f"results/figures/{o}/{e}/{POSES}/maps.png"]
-        outputs.append(f"results/tables/real/{o}_{e}_{POSES}_relight.csv")
-        if "textures" in capture:
-            outputs.append(f"results/tables/real/{o}_{e}_{POSES}.csv")
-    return outputs
-
-
 rule real_captures:
     """Only the real captures (config `real_captures`): import, orientation check,
     observations, every method's estimates, entropy, the maps figure, the relit

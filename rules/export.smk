@@ -6,21 +6,6 @@ from freqbrdf.viewer import WEB_ASSETS, WEB_DIR
 TRUTH_GLTF = "truth"  # node and material name of the ground truth in .glb files and the viewer
 
 
-def gltf_outputs():
-    """Every .glb, .hdr and viewer page the export rules write (targets of rule all)."""
-    outputs = [f"results/gltf/{o}/{TRUTH_GLTF}.glb" for o in SYNTHETIC_OBJECTS]
-    outputs += [f"results/gltf/{o}/{e}/{POSES}/{m}.glb" for o, e in CAPTURES for m in METHODS]
-    outputs += expand("results/envs/{env}.hdr", env=ENVS)
-    outputs += [f"results/viewer/{o}/{e}/{POSES}/viewer.html" for o, e in CAPTURES]
-    return outputs
-
-
-def viewer_panels(wildcards):
-    """The viewer's panels: the ground truth (synthetic captures only), then every method."""
-    panels = [] if wildcards.object in REAL_CAPTURES else [{"name": TRUTH_GLTF, "label": "Ground truth", "overlay": False}]
-    return panels + [{"name": m, "label": METHOD_REGISTRY[m].label, "overlay": True} for m in METHODS]
-
-
 rule export_gltf:
     """One method's estimate on the capture's mesh as binary glTF 2.0 (metallic-roughness material,
     base colour sRGB-encoded, roughness in G and metallic in B, 8 bits)."""

@@ -1,20 +1,6 @@
 # Entropy-guided merge of one object's estimates from all its captures (paper Table 6).
 
 
-def merge_envs(wildcards):
-    """Environments of every capture of the object, the one the merge is filed under first (ties go to it)."""
-    return [wildcards.env] + [e for o, e in CAPTURES if o == wildcards.object and e != wildcards.env]
-
-
-def merge_inputs(wildcards):
-    """The start method's estimate and the spectrum entropy of every capture of the object (merge_envs order)."""
-    w = wildcards
-    start = METHOD_REGISTRY[w.method].start
-    envs = merge_envs(w)
-    return {"estimates": [f"results/estimates/{w.object}/{e}/{w.poses}/{start}" for e in envs],
-            "entropy": [f"results/entropy/{w.object}/{e}/{w.poses}" for e in envs]}
-
-
 rule merge_svbrdf:
     """Per texel, the parameters of the capture whose spectrum entropy is lowest there
     (mitsuba_merged: of Mitsuba's estimates, as in the paper; freq_merged: of ours)."""

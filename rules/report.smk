@@ -6,34 +6,9 @@
 TABLES = ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "table6_merge", "claims"]
 
 
-def report_outputs():
-    """Every file the report rules write (targets of rule all)."""
-    outputs = [f"results/tables/{t}.{ext}" for t in TABLES for ext in ("md", "tex")]
-    outputs += ["results/tables/tables.md", "results/tables/tables.html", "results/tables/claims.html"]
-    outputs += [f"results/figures/{o}/{e}/{POSES}/maps.png" for o, e in CAPTURES]
-    outputs += [f"results/figures/{o}/{e}/{POSES}/relight.png" for o, e in SYNTHETIC_CAPTURES]
-    outputs += [f"results/figures/{o}/{e}/{POSES}/regulariser.png" for o, e in CAPTURES]
-    outputs += [f"results/views/{o}/{e}/{POSES}/views.png" for o, e in VIEWS_CAPTURES]
-    if CONVERGENCE_CURVES:
-        outputs += [f"results/figures/{o}/{e}/{POSES}/convergence.png" for o, e in SYNTHETIC_CAPTURES]
-    return outputs
-
-
 # Methods with a logged MSE curve (differentiable rendering) and those shown as points.
 CONVERGENCE_CURVES = [m for m in METHODS if METHOD_REGISTRY[m].rule == "mitsuba_svbrdf"]
 CONVERGENCE_POINTS = [m for m in METHODS if METHOD_REGISTRY[m].rule in FREQUENCY_RULES]
-
-
-def capture_relights(wildcards):
-    """(method, relight_env) of every relit image set of one capture, relighting environment-major."""
-    pairs = [(m, r) for o, e, p, m, r in RELIGHTS
-             if (o, e, p) == (wildcards.object, wildcards.env, wildcards.poses)]
-    return sorted(pairs, key=lambda pair: (ENVS.index(pair[1]), METHODS.index(pair[0])))
-
-
-def relight_figure_envs(wildcards):
-    """Relighting environments of one capture's figure, in the order of its references input."""
-    return list(dict.fromkeys(r for _, r in capture_relights(wildcards)))
 
 
 rule tables:
