@@ -1,13 +1,13 @@
 # Two entry points for a fresh machine (see README):
 #   make run    create .venv if needed, then run the pipeline on config/config.yaml
-#   make test   create .venv and Chromium (report-deps) if needed, then run the test suite
+#   make test   create .venv and Chromium (report-deps) if needed, then the lint checks and the test suite
 #   make report build results/report.html and screenshots of it
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= 2
 
-.PHONY: run test bench clean-results report report-deps
+.PHONY: run test lint bench clean-results report report-deps
 
 $(BIN)/.installed: workflow/pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,8 +18,14 @@ $(BIN)/.installed: workflow/pyproject.toml
 run: $(BIN)/.installed
 	$(BIN)/snakemake --cores $(CORES)
 
-test: $(BIN)/.installed report-deps
+test: $(BIN)/.installed report-deps lint
 	$(BIN)/python -m pytest -q tests
+
+# Lint and format checks (settings in pyproject.toml at the root); any violation fails.
+lint: $(BIN)/.installed
+	$(BIN)/ruff check .
+	$(BIN)/snakefmt --check Snakefile rules
+	$(BIN)/snakemake --lint
 
 # Speed, memory and accuracy measurements (bench/out/*.tsv); run on an idle machine.
 bench: $(BIN)/.installed

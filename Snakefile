@@ -1,8 +1,8 @@
 """FreqBRDF: fast, uncertainty-aware SVBRDF recovery from multi-view HDR captures.
 
-    snakemake --cores 2                                   # embedded default config
-    snakemake --cores 2 --configfile config/paper.yaml    # paper-scale preset
-    snakemake --report results/report.html
+snakemake --cores 2                                   # embedded default config
+snakemake --cores 2 --configfile config/paper.yaml    # paper-scale preset
+snakemake --report results/report.html
 """
 
 from pathlib import Path
@@ -20,6 +20,7 @@ configfile: Path(workflow.basedir) / "config" / "config.yaml"
 
 
 check_config(config, Path(workflow.basedir) / "config" / "schemas" / "config.schema.yaml")
+
 
 report: "report/workflow.rst"
 
@@ -43,6 +44,6 @@ include: "rules/export.smk"
 
 
 rule all:
+    default_target: True
     input:
         final_outputs(),
-    default_target: True

@@ -11,6 +11,15 @@ rule render_capture:
         code=library("render_capture"),
     output:
         directory("results/captures/{object}/{env}/{split}"),
+    log:
+        "results/logs/render_capture/{object}_{env}_{split}.log",
+    benchmark:
+        "results/benchmarks/render_capture/{object}_{env}_{split}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    threads: 2
+    resources:
+        mem_mb=4000,
     params:
         # Only the settings that change the images, so editing e.g. test_views
         # does not rerun the training renders.
@@ -18,14 +27,5 @@ rule render_capture:
         views=lambda wildcards: config["render"][f"{wildcards.split}_views"],
         azimuth_deg=lambda wildcards: 0.0 if wildcards.split == "train" else config["render"]["test_azimuth_deg"],
         seed=lambda wildcards: derived_seed(config["seed"], "render", wildcards.object, wildcards.env, wildcards.split),
-    threads: 2
-    resources:
-        mem_mb=4000,
-    log:
-        "results/logs/render_capture/{object}_{env}_{split}.log",
-    benchmark:
-        "results/benchmarks/render_capture/{object}_{env}_{split}.tsv"
-    conda:
-        "../envs/freqbrdf.yaml"
     script:
         "../workflow/scripts/render_capture.py"

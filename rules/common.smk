@@ -17,9 +17,7 @@ POSES = config["poses"]["source"]
 METHODS = list(config["methods"])  # names in freqbrdf.methods.METHODS (checked by check_config)
 # Every (object, env) pair that has a training capture; synthetic ones have ground truth.
 SYNTHETIC_CAPTURES = [(o, e) for o in SYNTHETIC_OBJECTS for e in CAPTURE_ENVS]
-CAPTURES = SYNTHETIC_CAPTURES + [
-    (name, capture["env"]) for name, capture in REAL_CAPTURES.items()
-]
+CAPTURES = SYNTHETIC_CAPTURES + [(name, capture["env"]) for name, capture in REAL_CAPTURES.items()]
 
 
 def relight_envs(env, method):
@@ -42,6 +40,7 @@ RELIGHTS = [(o, e, POSES, m, r) for o, e in SYNTHETIC_CAPTURES for m in METHODS 
 def relit_dir(o, e, p, m):
     """Output of the relighting of one estimate (relight): a subdirectory per relighting environment."""
     return f"results/relight/{o}/{e}/{p}/{m}"
+
 
 wildcard_constraints:
     object="|".join(OBJECTS),
@@ -181,7 +180,9 @@ def gltf_outputs():
 
 def viewer_panels(wildcards):
     """The viewer's panels: the ground truth (synthetic captures only), then every method."""
-    panels = [] if wildcards.object in REAL_CAPTURES else [{"name": TRUTH_GLTF, "label": "Ground truth", "overlay": False}]
+    panels = (
+        [] if wildcards.object in REAL_CAPTURES else [{"name": TRUTH_GLTF, "label": "Ground truth", "overlay": False}]
+    )
     return panels + [{"name": m, "label": METHOD_REGISTRY[m].label, "overlay": True} for m in METHODS]
 
 
@@ -201,8 +202,10 @@ def mitsuba_evaluation(wildcards):
     if wildcards.object in REAL_CAPTURES:
         return {}
     w = wildcards
-    return {"truth": [object_files(w.object)[n] for n in TEXTURES],
-            "observations": f"results/observations/{w.object}/{w.env}/{w.poses}"}
+    return {
+        "truth": [object_files(w.object)[n] for n in TEXTURES],
+        "observations": f"results/observations/{w.object}/{w.env}/{w.poses}",
+    }
 
 
 def mitsuba_settings(wildcards):
@@ -211,8 +214,9 @@ def mitsuba_settings(wildcards):
     settings = {key: value for key, value in config["mitsuba"].items() if key != "finetune"}
     if METHOD_REGISTRY[wildcards.method].start is not None:
         settings.update(config["mitsuba"]["finetune"])
-    settings["seed"] = derived_seed(config["seed"], "mitsuba", wildcards.object, wildcards.env,
-                                    wildcards.poses, wildcards.method)
+    settings["seed"] = derived_seed(
+        config["seed"], "mitsuba", wildcards.object, wildcards.env, wildcards.poses, wildcards.method
+    )
     return settings
 
 
@@ -227,8 +231,10 @@ def merge_inputs(wildcards):
     w = wildcards
     start = METHOD_REGISTRY[w.method].start
     envs = merge_envs(w)
-    return {"estimates": [f"results/estimates/{w.object}/{e}/{w.poses}/{start}" for e in envs],
-            "entropy": [f"results/entropy/{w.object}/{e}/{w.poses}" for e in envs]}
+    return {
+        "estimates": [f"results/estimates/{w.object}/{e}/{w.poses}/{start}" for e in envs],
+        "entropy": [f"results/entropy/{w.object}/{e}/{w.poses}" for e in envs],
+    }
 
 
 # ---- input functions and targets of rules/report.smk
@@ -247,8 +253,7 @@ def report_outputs():
 
 def capture_relights(wildcards):
     """(method, relight_env) of every relit image set of one capture, relighting environment-major."""
-    pairs = [(m, r) for o, e, p, m, r in RELIGHTS
-             if (o, e, p) == (wildcards.object, wildcards.env, wildcards.poses)]
+    pairs = [(m, r) for o, e, p, m, r in RELIGHTS if (o, e, p) == (wildcards.object, wildcards.env, wildcards.poses)]
     return sorted(pairs, key=lambda pair: (ENVS.index(pair[1]), METHODS.index(pair[0])))
 
 

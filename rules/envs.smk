@@ -5,19 +5,19 @@ rule build_env:
     output:
         exr="results/envs/{env}.exr",
         preview="results/envs/{env}.png",
-    params:
-        settings=lambda wildcards: config["envs"][wildcards.env],
-        height=config["envmaps"]["height"],
-        mean_radiance=config["envmaps"]["mean_radiance"],
-    threads: 2
-    resources:
-        mem_mb=2000,
     log:
         "results/logs/build_env/{env}.log",
     benchmark:
         "results/benchmarks/build_env/{env}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    threads: 2
+    resources:
+        mem_mb=2000,
+    params:
+        settings=lambda wildcards: config["envs"][wildcards.env],
+        height=config["envmaps"]["height"],
+        mean_radiance=config["envmaps"]["mean_radiance"],
     script:
         "../workflow/scripts/make_env.py"
 
@@ -30,12 +30,12 @@ rule env_spectrum:
     output:
         tsv="results/envs/{env}_spectrum.tsv",
         png=report("results/envs/{env}_spectrum.png", category="Environments", caption="../report/env_spectrum.rst"),
-    params:
-        lmax=config["envmaps"]["spectrum_lmax"],
     log:
         "results/logs/env_spectrum/{env}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        lmax=config["envmaps"]["spectrum_lmax"],
     script:
         "../workflow/scripts/env_spectrum.py"
 
@@ -47,11 +47,11 @@ rule env_spectra:
         code=library("env_spectra"),
     output:
         report("results/envs/spectra.png", category="Environments", caption="../report/env_spectra.rst"),
-    params:
-        envs=ENVS,
     log:
         "results/logs/env_spectra.log",
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        envs=ENVS,
     script:
         "../workflow/scripts/env_spectra.py"

@@ -10,18 +10,18 @@ rule optimise_svbrdf:
         code=library("optimise_svbrdf"),
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
-    wildcard_constraints:
-        method=wildcard_pattern(methods_of("optimise_svbrdf")),
-    params:
-        optimise=config["optimise"],
-    threads: 2
-    resources:
-        mem_mb=4000,
     log:
         "results/logs/optimise_svbrdf/{object}_{env}_{poses}_{method}.log",
     benchmark:
         "results/benchmarks/optimise_svbrdf/{object}_{env}_{poses}_{method}.tsv"
+    wildcard_constraints:
+        method=wildcard_pattern(methods_of("optimise_svbrdf")),
     conda:
         "../envs/freqbrdf.yaml"
+    threads: 2
+    resources:
+        mem_mb=4000,
+    params:
+        optimise=config["optimise"],
     script:
         "../workflow/scripts/optimise_svbrdf.py"

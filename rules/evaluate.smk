@@ -24,6 +24,13 @@ rule metrics:
         code=library("metrics"),
     output:
         "results/tables/metrics.csv",
+    log:
+        "results/logs/metrics.log",
+    benchmark:
+        "results/benchmarks/metrics.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    threads: 1
     params:
         metrics={key: config["evaluate"][key] for key in METRIC_KEYS},
         synthetic=METRIC_ESTIMATES,
@@ -35,12 +42,5 @@ rule metrics:
         timings=[(o, e, p, m, len(method_benchmarks(o, e, p, m))) for o, e, p, m in METRIC_TIMINGS],
         methods=METHODS,
         views=[(o, e, POSES) for o, e in VIEWS_CAPTURES],
-    threads: 1
-    log:
-        "results/logs/metrics.log",
-    benchmark:
-        "results/benchmarks/metrics.tsv"
-    conda:
-        "../envs/freqbrdf.yaml"
     script:
         "../workflow/scripts/metrics.py"

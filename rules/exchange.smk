@@ -32,6 +32,10 @@ rule import_capture:
         test=directory("results/imports/{object}/test"),
         mesh="results/imports/{object}/mesh.ply",
         envmap="results/imports/{object}/envmap_given.exr",
+    log:
+        "results/logs/import_capture/{object}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
     params:
         # Snakemake sees only the source directory's timestamp, which a file
         # rewritten inside it leaves alone; a changed checksum reruns the import
@@ -40,10 +44,6 @@ rule import_capture:
         checksum=lambda wildcards: source_checksum(REAL_CAPTURES[wildcards.object]["dir"]),
         up_axis=lambda wildcards: REAL_CAPTURES[wildcards.object]["up_axis"],
         camera=lambda wildcards: REAL_CAPTURES[wildcards.object]["camera"],
-    log:
-        "results/logs/import_capture/{object}.log",
-    conda:
-        "../envs/freqbrdf.yaml"
     script:
         "../workflow/scripts/import_capture.py"
 
@@ -61,6 +61,11 @@ rule env_orientation:
         envmap="results/imports/{object}/envmap.exr",
         scores="results/imports/{object}/env_orientation.tsv",
         rotation="results/imports/{object}/env_rotation.json",
+    log:
+        "results/logs/env_orientation/{object}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    threads: 2
     params:
         align=lambda wildcards: REAL_CAPTURES[wildcards.object]["align_env"],
         source=lambda wildcards: REAL_CAPTURES[wildcards.object]["dir"],
@@ -68,11 +73,6 @@ rule env_orientation:
         lmax=config["sh"]["lmax"],
         resolution=config["textures"]["resolution"],
         seed=lambda wildcards: derived_seed(config["seed"], "env_orientation", wildcards.object),
-    threads: 2
-    log:
-        "results/logs/env_orientation/{object}.log",
-    conda:
-        "../envs/freqbrdf.yaml"
     script:
         "../workflow/scripts/env_orientation.py"
 
@@ -85,13 +85,13 @@ rule import_textures:
         code=library("import_textures"),
     output:
         **{name: f"results/imports/{{object}}/truth/{name}.exr" for name in TEXTURES},
-    params:
-        checksum=lambda wildcards: source_checksum(REAL_CAPTURES[wildcards.object]["textures"]),
-        resolution=config["textures"]["resolution"],
     log:
         "results/logs/import_textures/{object}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        checksum=lambda wildcards: source_checksum(REAL_CAPTURES[wildcards.object]["textures"]),
+        resolution=config["textures"]["resolution"],
     script:
         "../workflow/scripts/import_textures.py"
 
@@ -107,13 +107,13 @@ rule score_real_capture:
         code=library("score_real_capture"),
     output:
         "results/tables/real/{object}_{env}_{poses}.csv",
-    params:
-        methods=METHODS,
-        entropy_methods=[m for m in METHODS if METHOD_REGISTRY[m].entropy_scored],
     log:
         "results/logs/score_real_capture/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        methods=METHODS,
+        entropy_methods=[m for m in METHODS if METHOD_REGISTRY[m].entropy_scored],
     script:
         "../workflow/scripts/score_real_capture.py"
 
@@ -131,19 +131,19 @@ rule relight_real:
         code=library("relight_real"),
     output:
         directory("results/relight_real/{object}/{env}/{poses}/{method}"),
-    params:
-        spp=config["render"]["spp"],
-        max_depth=config["render"]["max_depth"],
-        seed=lambda wildcards: derived_seed(config["seed"], "relight_real", wildcards.object),
-    threads: 2
-    resources:
-        mem_mb=4000,
     log:
         "results/logs/relight_real/{object}_{env}_{poses}_{method}.log",
     benchmark:
         "results/benchmarks/relight_real/{object}_{env}_{poses}_{method}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    threads: 2
+    resources:
+        mem_mb=4000,
+    params:
+        spp=config["render"]["spp"],
+        max_depth=config["render"]["max_depth"],
+        seed=lambda wildcards: derived_seed(config["seed"], "relight_real", wildcards.object),
     script:
         "../workflow/scripts/relight_real.py"
 
@@ -158,13 +158,13 @@ rule score_real_relight:
         code=library("score_real_relight"),
     output:
         "results/tables/real/{object}_{env}_{poses}_relight.csv",
-    params:
-        methods=METHODS,
-        metrics={key: config["evaluate"][key] for key in ("mask_min_coverage", "hdr_clip", "hdr_normalise")},
     log:
         "results/logs/score_real_relight/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        methods=METHODS,
+        metrics={key: config["evaluate"][key] for key in ("mask_min_coverage", "hdr_clip", "hdr_normalise")},
     script:
         "../workflow/scripts/score_real_relight.py"
 

@@ -15,14 +15,14 @@ rule export_gltf:
         code=library("export_gltf"),
     output:
         "results/gltf/{object}/{env}/{poses}/{method}.glb",
-    params:
-        name=lambda wildcards: wildcards.method,
     log:
         "results/logs/export_gltf/{object}_{env}_{poses}_{method}.log",
     benchmark:
         "results/benchmarks/export_gltf/{object}_{env}_{poses}_{method}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        name=lambda wildcards: wildcards.method,
     script:
         "../workflow/scripts/export_gltf.py"
 
@@ -34,14 +34,14 @@ rule export_truth_gltf:
         code=library("export_gltf"),
     output:
         f"results/gltf/{{object}}/{TRUTH_GLTF}.glb",
-    params:
-        name=TRUTH_GLTF,
     log:
         "results/logs/export_truth_gltf/{object}.log",
     benchmark:
         "results/benchmarks/export_truth_gltf/{object}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        name=TRUTH_GLTF,
     script:
         "../workflow/scripts/export_gltf.py"
 
@@ -78,15 +78,15 @@ rule viewer:
         # Linked from the maps figure's caption, not embedded: a single-file report would
         # carry 7 MB per page as data: addresses, which Chromium does not show above 2 MB.
         "results/viewer/{object}/{env}/{poses}/viewer.html",
-    params:
-        panels=viewer_panels,
-        envs=ENVS,
-        title=lambda w: f"FreqBRDF: {w.object} / {w.env} ({w.poses} poses)",
     log:
         "results/logs/viewer/{object}_{env}_{poses}.log",
     benchmark:
         "results/benchmarks/viewer/{object}_{env}_{poses}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        panels=viewer_panels,
+        envs=ENVS,
+        title=lambda w: f"FreqBRDF: {w.object} / {w.env} ({w.poses} poses)",
     script:
         "../workflow/scripts/make_viewer.py"

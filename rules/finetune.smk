@@ -16,19 +16,19 @@ rule mitsuba_svbrdf:
         code=library("mitsuba_svbrdf"),
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
-    wildcard_constraints:
-        method=wildcard_pattern(methods_of("mitsuba_svbrdf")),
-    params:
-        resolution=config["textures"]["resolution"],
-        settings=mitsuba_settings,
-    threads: 2
-    resources:
-        mem_mb=4000,
     log:
         "results/logs/mitsuba_svbrdf/{object}_{env}_{poses}_{method}.log",
     benchmark:
         "results/benchmarks/mitsuba_svbrdf/{object}_{env}_{poses}_{method}.tsv"
+    wildcard_constraints:
+        method=wildcard_pattern(methods_of("mitsuba_svbrdf")),
     conda:
         "../envs/freqbrdf.yaml"
+    threads: 2
+    resources:
+        mem_mb=4000,
+    params:
+        resolution=config["textures"]["resolution"],
+        settings=mitsuba_settings,
     script:
         "../workflow/scripts/mitsuba_svbrdf.py"

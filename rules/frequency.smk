@@ -6,17 +6,17 @@ rule fit_sh:
         code=library("fit_sh"),
     output:
         directory("results/sh/{object}/{env}/{poses}"),
-    params:
-        sh=config["sh"],
-    threads: 2
-    resources:
-        mem_mb=4000,
     log:
         "results/logs/fit_sh/{object}_{env}_{poses}.log",
     benchmark:
         "results/benchmarks/fit_sh/{object}_{env}_{poses}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    threads: 2
+    resources:
+        mem_mb=4000,
+    params:
+        sh=config["sh"],
     script:
         "../workflow/scripts/fit_sh.py"
 
@@ -32,14 +32,14 @@ rule spectrum_search:
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/spectrum"),
         entropy=directory("results/entropy/{object}/{env}/{poses}"),
-    params:
-        spectrum=config["spectrum"],
-    threads: 2
     log:
         "results/logs/spectrum_search/{object}_{env}_{poses}.log",
     benchmark:
         "results/benchmarks/spectrum_search/{object}_{env}_{poses}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    threads: 2
+    params:
+        spectrum=config["spectrum"],
     script:
         "../workflow/scripts/spectrum_search.py"

@@ -9,16 +9,16 @@ rule merge_svbrdf:
         code=library("merge_svbrdf"),
     output:
         estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
-    wildcard_constraints:
-        method=wildcard_pattern(methods_of("merge_svbrdf")),
-    params:
-        envs=merge_envs,
-    threads: 1
     log:
         "results/logs/merge_svbrdf/{object}_{env}_{poses}_{method}.log",
     benchmark:
         "results/benchmarks/merge_svbrdf/{object}_{env}_{poses}_{method}.tsv"
+    wildcard_constraints:
+        method=wildcard_pattern(methods_of("merge_svbrdf")),
     conda:
         "../envs/freqbrdf.yaml"
+    threads: 1
+    params:
+        envs=merge_envs,
     script:
         "../workflow/scripts/merge_svbrdf.py"

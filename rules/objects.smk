@@ -5,15 +5,15 @@ rule build_object:
     output:
         **object_files("{object}"),
         **{f"{texture}_png": f"results/objects/{{object}}/{texture}.png" for texture in TEXTURES},
-    params:
-        detail=config["meshes"]["detail"],
-        textures=config["textures"],
-        seed=lambda wildcards: derived_seed(config["seed"], "object", wildcards.object),
     log:
         "results/logs/build_object/{object}.log",
     benchmark:
         "results/benchmarks/build_object/{object}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        detail=config["meshes"]["detail"],
+        textures=config["textures"],
+        seed=lambda wildcards: derived_seed(config["seed"], "object", wildcards.object),
     script:
         "../workflow/scripts/make_object.py"

@@ -9,17 +9,17 @@ rule extract_observations:
         code=library("extract_observations"),
     output:
         directory("results/observations/{object}/{env}/{poses}"),
-    params:
-        resolution=config["textures"]["resolution"],
-        settings=config["observations"],
-    threads: 2
-    resources:
-        mem_mb=4000,
     log:
         "results/logs/extract_observations/{object}_{env}_{poses}.log",
     benchmark:
         "results/benchmarks/extract_observations/{object}_{env}_{poses}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    threads: 2
+    resources:
+        mem_mb=4000,
+    params:
+        resolution=config["textures"]["resolution"],
+        settings=config["observations"],
     script:
         "../workflow/scripts/extract_observations.py"

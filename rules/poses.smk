@@ -8,19 +8,22 @@ rule colmap_poses:
         code=library("colmap_poses"),
     output:
         directory("results/poses/{object}/{env}/colmap"),
-    params:
-        colmap=config["poses"]["colmap"],
-        gates={key: config["poses"][key] for key in ("min_registered_fraction", "max_median_rotation_deg", "max_median_centre_error")},
-        seed=lambda wildcards: derived_seed(config["seed"], "sfm", wildcards.object, wildcards.env),
-    threads: 2
-    resources:
-        mem_mb=4000,
     log:
         "results/logs/colmap_poses/{object}_{env}.log",
     benchmark:
         "results/benchmarks/colmap_poses/{object}_{env}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    threads: 2
+    resources:
+        mem_mb=4000,
+    params:
+        colmap=config["poses"]["colmap"],
+        gates={
+            key: config["poses"][key]
+            for key in ("min_registered_fraction", "max_median_rotation_deg", "max_median_centre_error")
+        },
+        seed=lambda wildcards: derived_seed(config["seed"], "sfm", wildcards.object, wildcards.env),
     script:
         "../workflow/scripts/colmap_poses.py"
 
@@ -32,11 +35,11 @@ rule pose_errors:
         code=library("pose_errors"),
     output:
         "results/tables/pose_errors.tsv",
-    params:
-        captures=SYNTHETIC_CAPTURES,
     log:
         "results/logs/pose_errors.log",
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        captures=SYNTHETIC_CAPTURES,
     script:
         "../workflow/scripts/pose_errors.py"

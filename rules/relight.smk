@@ -18,21 +18,22 @@ rule relight:
         code=library("relight"),
     output:
         directory("results/relight/{object}/{env}/{poses}/{method}"),
-    params:
-        render={key: config["render"][key] for key in RELIGHT_KEYS},
-        relight_envs=lambda w: relight_envs(w.env, w.method),
-        # The reference renders' seeds: same sample sequence, so a perfect estimate
-        # reproduces the reference image noise and all.
-        seeds=lambda w: [derived_seed(config["seed"], "render", w.object, r, "test")
-                         for r in relight_envs(w.env, w.method)],
-    threads: 2
-    resources:
-        mem_mb=4000,
     log:
         "results/logs/relight/{object}_{env}_{poses}_{method}.log",
     benchmark:
         "results/benchmarks/relight/{object}_{env}_{poses}_{method}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    threads: 2
+    resources:
+        mem_mb=4000,
+    params:
+        render={key: config["render"][key] for key in RELIGHT_KEYS},
+        relight_envs=lambda w: relight_envs(w.env, w.method),
+        # The reference renders' seeds: same sample sequence, so a perfect estimate
+        # reproduces the reference image noise and all.
+        seeds=lambda w: [
+            derived_seed(config["seed"], "render", w.object, r, "test") for r in relight_envs(w.env, w.method)
+        ],
     script:
         "../workflow/scripts/relight.py"

@@ -24,18 +24,23 @@ rule tables:
     output:
         **{f"{t}_{ext}": f"results/tables/{t}.{ext}" for t in TABLES for ext in ("md", "tex")},
         all_md="results/tables/tables.md",
-        html=report("results/tables/tables.html", category="Tables", caption="../report/tables.rst",
-                    labels={"table": "Tables 1, 2, 4, 5, 6"}),
-        claims_html=report("results/tables/claims.html", category="Tables", caption="../report/claims.rst",
-                           labels={"table": "claims"}),
-    params:
-        poses=POSES,
-        # Which of the paper's environments each of ours stands beside (Table 2).
-        env_kinds={env: config["envs"][env]["kind"] for env in ENVS},
+        html=report(
+            "results/tables/tables.html",
+            category="Tables",
+            caption="../report/tables.rst",
+            labels={"table": "Tables 1, 2, 4, 5, 6"},
+        ),
+        claims_html=report(
+            "results/tables/claims.html", category="Tables", caption="../report/claims.rst", labels={"table": "claims"}
+        ),
     log:
         "results/logs/tables.log",
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        poses=POSES,
+        # Which of the paper's environments each of ours stands beside (Table 2).
+        env_kinds={env: config["envs"][env]["kind"] for env in ENVS},
     script:
         "../workflow/scripts/report_tables.py"
 
@@ -51,15 +56,19 @@ rule capture_figure:
         entropy="results/entropy/{object}/{env}/{poses}",
         code=library("report_figures"),
     output:
-        report("results/figures/{object}/{env}/{poses}/maps.png", category="Captures",
-               subcategory="{object} / {env}", caption="../report/capture_maps.rst",
-               labels={"capture": "{object} / {env}", "figure": "SVBRDF maps, entropy, error"}),
-    params:
-        methods=METHODS,
+        report(
+            "results/figures/{object}/{env}/{poses}/maps.png",
+            category="Captures",
+            subcategory="{object} / {env}",
+            caption="../report/capture_maps.rst",
+            labels={"capture": "{object} / {env}", "figure": "SVBRDF maps, entropy, error"},
+        ),
     log:
         "results/logs/capture_figure/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        methods=METHODS,
     script:
         "../workflow/scripts/report_figures.py"
 
@@ -73,16 +82,20 @@ rule relight_figure:
         metrics="results/tables/metrics.csv",
         code=library("report_figures"),
     output:
-        report("results/figures/{object}/{env}/{poses}/relight.png", category="Captures",
-               subcategory="{object} / {env}", caption="../report/capture_relight.rst",
-               labels={"capture": "{object} / {env}", "figure": "relighting"}),
-    params:
-        relights=capture_relights,
-        references=relight_figure_envs,
+        report(
+            "results/figures/{object}/{env}/{poses}/relight.png",
+            category="Captures",
+            subcategory="{object} / {env}",
+            caption="../report/capture_relight.rst",
+            labels={"capture": "{object} / {env}", "figure": "relighting"},
+        ),
     log:
         "results/logs/relight_figure/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        relights=capture_relights,
+        references=relight_figure_envs,
     script:
         "../workflow/scripts/report_figures.py"
 
@@ -96,17 +109,21 @@ rule convergence_figure:
         metrics="results/tables/metrics.csv",
         code=library("report_figures"),
     output:
-        report("results/figures/{object}/{env}/{poses}/convergence.png", category="Captures",
-               subcategory="{object} / {env}", caption="../report/capture_convergence.rst",
-               labels={"capture": "{object} / {env}", "figure": "MSE against time"}),
-    params:
-        curves=CONVERGENCE_CURVES,
-        starts=[METHOD_REGISTRY[m].start for m in CONVERGENCE_CURVES],
-        points=CONVERGENCE_POINTS,
+        report(
+            "results/figures/{object}/{env}/{poses}/convergence.png",
+            category="Captures",
+            subcategory="{object} / {env}",
+            caption="../report/capture_convergence.rst",
+            labels={"capture": "{object} / {env}", "figure": "MSE against time"},
+        ),
     log:
         "results/logs/convergence_figure/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    params:
+        curves=CONVERGENCE_CURVES,
+        starts=[METHOD_REGISTRY[m].start for m in CONVERGENCE_CURVES],
+        points=CONVERGENCE_POINTS,
     script:
         "../workflow/scripts/report_figures.py"
 
@@ -119,18 +136,22 @@ rule regulariser_figure:
         envmap=envmap_file,
         code=library("report_figures"),
     output:
-        figure=report("results/figures/{object}/{env}/{poses}/regulariser.png", category="Captures",
-                      subcategory="{object} / {env}", caption="../report/capture_regulariser.rst",
-                      labels={"capture": "{object} / {env}", "figure": "SH fit options"}),
+        figure=report(
+            "results/figures/{object}/{env}/{poses}/regulariser.png",
+            category="Captures",
+            subcategory="{object} / {env}",
+            caption="../report/capture_regulariser.rst",
+            labels={"capture": "{object} / {env}", "figure": "SH fit options"},
+        ),
         table="results/figures/{object}/{env}/{poses}/regulariser.tsv",
+    log:
+        "results/logs/regulariser_figure/{object}_{env}_{poses}.log",
+    conda:
+        "../envs/freqbrdf.yaml"
     params:
         sh=config["sh"],
         texels=1000,  # observed texels sampled (seeded)
         alpha=0.3,  # the lobe filtering the light (roughness 0.55, mid-range of the benchmark)
         seed=lambda w: derived_seed(config["seed"], "regulariser", w.object, w.env, w.poses),
-    log:
-        "results/logs/regulariser_figure/{object}_{env}_{poses}.log",
-    conda:
-        "../envs/freqbrdf.yaml"
     script:
         "../workflow/scripts/report_figures.py"

@@ -13,8 +13,19 @@ rule views_sweep:
         code=library("views_sweep"),
     output:
         table="results/views/{object}/{env}/{poses}/views.tsv",
-        figure=report("results/views/{object}/{env}/{poses}/views.png", category="Uncertainty",
-                      caption="../report/views.rst", labels={"capture": "{object} / {env}", "figure": "views"}),
+        figure=report(
+            "results/views/{object}/{env}/{poses}/views.png",
+            category="Uncertainty",
+            caption="../report/views.rst",
+            labels={"capture": "{object} / {env}", "figure": "views"},
+        ),
+    log:
+        "results/logs/views_sweep/{object}_{env}_{poses}.log",
+    benchmark:
+        "results/benchmarks/views_sweep/{object}_{env}_{poses}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    threads: 2
     params:
         counts=config["evaluate"]["views_counts"],
         seed=lambda w: derived_seed(config["seed"], "views", w.object, w.env, w.poses),
@@ -22,12 +33,5 @@ rule views_sweep:
         sh=config["sh"],
         spectrum=config["spectrum"],
         optimise=config["optimise"],
-    threads: 2
-    log:
-        "results/logs/views_sweep/{object}_{env}_{poses}.log",
-    benchmark:
-        "results/benchmarks/views_sweep/{object}_{env}_{poses}.tsv"
-    conda:
-        "../envs/freqbrdf.yaml"
     script:
         "../workflow/scripts/views_sweep.py"
