@@ -104,3 +104,10 @@ def test_atomic_path_creates_files_with_the_umask_mode(tmp_path):
         os.umask(old)
     assert (tmp_path / "out.txt").stat().st_mode & 0o777 == 0o644
     assert [p.name for p in tmp_path.iterdir()] == ["out.txt"]
+
+
+def test_progress_extrapolates_the_time_left():
+    from freqbrdf.logs import progress
+
+    assert progress(3, 24, 2.1) == "3 of 24, 2.1 s elapsed, about 15 s left"  # 0.7 s each, 21 to go
+    assert progress(24, 24, 16.8).endswith("about 0 s left")

@@ -35,6 +35,13 @@ def script_logger(name: str, log_file: str | Path | None) -> logging.Logger:
     return logger
 
 
+def progress(done: int, total: int, elapsed_s: float) -> str:
+    """``"3 of 24, 2.1 s elapsed, about 14 s left"``: a long job's progress line, the time left
+    extrapolated from the mean time per item so far."""
+    left = elapsed_s / done * (total - done) if done else float("nan")
+    return f"{done} of {total}, {elapsed_s:.1f} s elapsed, about {left:.0f} s left"
+
+
 def peak_memory_mb() -> float:
     """Peak resident memory of this process so far, in MiB (Linux ``ru_maxrss`` is KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

@@ -15,7 +15,7 @@ from pathlib import Path
 from freqbrdf.artefacts import ObservationsWriter
 from freqbrdf.cameras import cameras_from_json
 from freqbrdf.io import atomic_directory, read_exr, read_json, read_views
-from freqbrdf.logs import run_script
+from freqbrdf.logs import progress, run_script
 from freqbrdf.meshes import read_ply
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.observation_kernels import set_threads as set_kernel_threads
@@ -70,8 +70,8 @@ def _extract(mi, smk, log, settings, tmp):
                       ray_offset=settings["ray_offset"], footprint_slack=settings["footprint_slack"])
         writer.write(s, obs)
         nonfinite_pairs += obs["nonfinite"]
-        log.info("texels %d-%d of %d observed (%.1f s elapsed)", s, min(s + chunk, n_tex), n_tex,
-                 time.perf_counter() - start)
+        log.info("texels %d-%d observed: chunk %s", s, min(s + chunk, n_tex),
+                 progress(s // chunk + 1, -(-n_tex // chunk), time.perf_counter() - start))
     views_per_texel = writer.views_per_texel()
     if not views_per_texel.any():
         # Every later stage would fail on an empty capture, naming its own artefact instead.

@@ -12,7 +12,7 @@ from freqbrdf.metrics import parameter_mse
 from freqbrdf.cameras import cameras_from_json
 from freqbrdf.inverse import InverseSettings, constant_textures, optimise_textures
 from freqbrdf.io import atomic_directory, atomic_path, read_exr, read_json, read_views
-from freqbrdf.logs import run_script
+from freqbrdf.logs import progress, run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import loss_figure
 
@@ -50,12 +50,12 @@ def main(smk, log):
     settings = InverseSettings(**smk.params.settings)
     log.info("%s: %d views of %dx%d, %s", smk.wildcards.method, len(cameras), cameras.width, cameras.height, settings)
 
-    def progress(report):
-        log.info("epoch %d/%d: mean loss %.5g, %.1f s elapsed, %.0f MB resident", report.epoch, report.epochs,
-                 report.loss, report.elapsed_s, report.resident_mb)
+    def report_epoch(report):
+        log.info("epoch %s: mean loss %.5g, %.0f MB resident", progress(report.epoch, report.epochs, report.elapsed_s),
+                 report.loss, report.resident_mb)
 
     result = optimise_textures(mi, smk.input.mesh, read_exr(smk.input.envmap), cameras, images, coverage,
-                               start_textures(smk), settings, progress=progress, evaluate=evaluation(smk))
+                               start_textures(smk), settings, progress=report_epoch, evaluate=evaluation(smk))
 
     with atomic_directory(smk.output.estimate) as tmp:
         write_svbrdf(tmp, result.textures)

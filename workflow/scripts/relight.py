@@ -6,7 +6,7 @@ from pathlib import Path
 from freqbrdf.cameras import cameras_from_json
 from freqbrdf.artefacts import read_svbrdf
 from freqbrdf.io import atomic_directory, read_exr, read_json, write_exr
-from freqbrdf.logs import run_script
+from freqbrdf.logs import progress, run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import contact_sheet
 from freqbrdf.render import relit_views
@@ -37,9 +37,8 @@ def main(smk, log):
                 if len(previews) < 8:  # the reference capture's preview.png shows the same first 8 views
                     previews.append(image)
             contact_sheet(tmp / env / "preview.png", previews)
-            elapsed = time.perf_counter() - start
-            log.info("relit under %s: %d views (environment %d of %d, %.1f s elapsed, about %.0f s left)",
-                     env, len(cameras), i + 1, len(envs), elapsed, elapsed / (i + 1) * (len(envs) - i - 1))
+            log.info("relit under %s, %d views: environment %s", env, len(cameras),
+                     progress(i + 1, len(envs), time.perf_counter() - start))
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)

@@ -8,7 +8,7 @@ from freqbrdf.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsic
 from freqbrdf.artefacts import read_svbrdf
 from freqbrdf.brdf import TEXTURES
 from freqbrdf.io import atomic_directory, read_exr, write_exr, write_json, write_png
-from freqbrdf.logs import run_script
+from freqbrdf.logs import progress, run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import contact_sheet
 from freqbrdf.render import capture_scene, mask_scene, principled_bsdf, render_views
@@ -43,11 +43,11 @@ def _render_into(mi, smk, log, cameras, to_world, frame, tmp):
     )
     start = time.perf_counter()
     previews = []
-    for name, image in zip(cameras.names, render_views(mi, scene, to_world, seed=p.seed)):
+    for i, (name, image) in enumerate(zip(cameras.names, render_views(mi, scene, to_world, seed=p.seed))):
         write_exr(tmp / "images" / f"{name}.exr", image)  # raises, naming the view, on NaN/Inf
         if len(previews) < 8:
             previews.append(image)
-        log.info("view %s rendered, %d views in total (%.1f s elapsed)", name, len(cameras), time.perf_counter() - start)
+        log.info("view %s rendered: %s", name, progress(i + 1, len(cameras), time.perf_counter() - start))
 
     masks = mask_scene(mi, smk.input.mesh, spp=p.render["mask_spp"], **frame)
     for name, coverage in zip(cameras.names, render_views(mi, masks, to_world, seed=p.seed)):
