@@ -14,12 +14,17 @@ from freqbrdf.config import check_config
 min_version("9.0")
 
 
-# The embedded default, found next to this file even when run with --directory;
-# --configfile and --config values are layered on top of it.
-configfile: Path(workflow.basedir) / "config" / "config.yaml"
+# This repository: the directory of this file, also when the workflow is used as a
+# module from another (workflow.basedir is then the consumer's) or with --directory.
+REPO = Path(workflow.current_basedir)
 
 
-check_config(config, Path(workflow.basedir) / "config" / "schemas" / "config.schema.yaml")
+# The embedded default, found next to this file; --configfile and --config values
+# are layered on top of it.
+configfile: REPO / "config" / "config.yaml"
+
+
+check_config(config, REPO / "config" / "schemas" / "config.schema.yaml")
 
 
 report: "report/workflow.rst"

@@ -50,8 +50,8 @@ wildcard_constraints:
     method=wildcard_pattern(list(METHOD_REGISTRY)),
 
 
-LIBRARY = Path(workflow.basedir) / "workflow" / "freqbrdf"
-SCRIPTS = Path(workflow.basedir) / "workflow" / "scripts"
+LIBRARY = REPO / "workflow" / "freqbrdf"
+SCRIPTS = REPO / "workflow" / "scripts"
 
 
 def library(script):

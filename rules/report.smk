@@ -19,7 +19,7 @@ rule tables:
         # The paper's numbers ship with the workflow, not with the working
         # directory: found next to the Snakefile, as the embedded config is,
         # also under --directory (no rule reads config/ relative to the workdir).
-        paper=str(Path(workflow.basedir) / "config" / "paper_results.yaml"),
+        paper=str(REPO / "config" / "paper_results.yaml"),
         code=library("report_tables"),
     output:
         **{f"{t}_{ext}": f"results/tables/{t}.{ext}" for t in TABLES for ext in ("md", "tex")},

@@ -560,3 +560,36 @@ def test_a_wrongly_oriented_map_is_reported_with_the_best_rotation(repo, orb):
     assert "set align_env: true" in run.stderr
     work = orb["workdir"] / "results/imports/turned"
     np.testing.assert_array_equal(read_exr(work / "envmap.exr"), read_exr(orb["source"] / "envmap.exr"))
+
+
+TIMING_METRICS = ("time_s", "time_total_s", "max_rss_mb", "speed_ratio_vs_mitsuba", "speed_ratio_equal_accuracy",
+                  "mitsuba_time_to_match_s", "mitsuba_reached")
+
+
+def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
+    """A consumer directory with only a config and a `module` declaration runs the tiny preset
+    to completion, with the same numbers as the run from this repository."""
+    import pandas as pd
+    import yaml
+    from snakemake.utils import update_config
+
+    config = yaml.safe_load((repo / "config" / "config.yaml").read_text())
+    update_config(config, yaml.safe_load((repo / "config" / "tiny.yaml").read_text()))
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump(config))
+    (tmp_path / "Snakefile").write_text(
+        'configfile: "config.yaml"\n\n\n'
+        f'module freqbrdf:\n    snakefile:\n        "{repo / "Snakefile"}"\n    config:\n        config\n\n\n'
+        "use rule * from freqbrdf\n"
+    )
+    done = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-4000:]
+
+    def numbers(workdir):
+        table = pd.read_csv(workdir / "results/tables/metrics.csv")
+        table = table[~table.metric.isin(TIMING_METRICS)]
+        return table.sort_values(["object", "env", "poses", "method", "relight_env", "metric"]).reset_index(drop=True)
+
+    ours, theirs = numbers(run), numbers(tmp_path)
+    assert len(theirs) > 100
+    pd.testing.assert_frame_equal(theirs, ours, check_exact=False, rtol=1e-9, atol=1e-12)
