@@ -23,3 +23,29 @@ def filter_coeffs(coeffs: np.ndarray, alpha: float) -> np.ndarray:
     lmax = round(np.sqrt(coeffs.shape[0])) - 1
     f = np.exp(-((alpha * sh.sh_degrees(lmax)) ** 2))
     return coeffs * f.reshape((-1,) + (1,) * (coeffs.ndim - 1))
+
+
+def rewrite_z_up(root, mesh, camera_axes: np.ndarray | None = None) -> None:
+    """Rewrite an exchange-layout capture in ``root`` as a Z-up tool would hand it over.
+
+    The mesh (a `freqbrdf.meshes.Mesh`, Y-up) becomes ``mesh.obj`` in a Z-up
+    world, without normals; the cameras of ``transforms_*.json`` are turned into
+    that world and, with ``camera_axes`` (4, 4), re-expressed in other camera axes
+    (``diag(1, -1, -1, 1)``: OpenCV's).
+    """
+    from freqbrdf.capture_io import Y_UP_FROM_Z_UP
+    from freqbrdf.io import read_json, write_json
+
+    z_up = mesh.vertices @ Y_UP_FROM_Z_UP  # the inverse of the import's rotation
+    lines = ["# Z-up, no normals: the import recomputes them"]
+    lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in z_up] + [f"vt {u:.9g} {v:.9g}" for u, v in mesh.uvs]
+    lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in mesh.faces]
+    (root / "mesh.obj").write_text("\n".join(lines) + "\n")
+    world = np.eye(4)
+    world[:3, :3] = Y_UP_FROM_Z_UP.T
+    axes = np.eye(4) if camera_axes is None else camera_axes
+    for split in ("train", "test"):
+        transforms = read_json(root / f"transforms_{split}.json")
+        for frame in transforms["frames"]:
+            frame["transform_matrix"] = (world @ np.array(frame["transform_matrix"]) @ axes).tolist()
+        write_json(root / f"transforms_{split}.json", transforms)

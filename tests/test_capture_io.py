@@ -9,6 +9,7 @@ from freqbrdf.capture_io import blender_transforms, cameras_from_blender, export
 from freqbrdf.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics
 from freqbrdf.io import read_json, write_exr, write_json, write_png
 from freqbrdf.meshes import make_mesh, read_ply, write_ply
+from synthetic import rewrite_z_up
 
 
 def _cameras(n=3, width=40, height=30):
@@ -142,26 +143,13 @@ def test_a_mesh_without_uvs_stops_the_import_naming_the_source(tmp_path):
 
 
 def test_z_up_obj_and_opencv_cameras_give_the_y_up_capture(tmp_path):
-    from freqbrdf.capture_io import Y_UP_FROM_Z_UP
-
     cams = _cameras()
     reference = _orb(tmp_path / "ref", cams)
     _import(reference, tmp_path / "ref_out")
     # The same capture written by a Z-up tool: mesh as OBJ, cameras in OpenCV axes.
     zup = _orb(tmp_path / "zup", cams)
     (zup / "mesh.ply").unlink()
-    sphere = make_mesh("sphere")
-    v = sphere.vertices @ Y_UP_FROM_Z_UP  # inverse rotation: Y-up -> Z-up
-    lines = [f"v {a:.9f} {b:.9f} {c:.9f}" for a, b, c in v] + [f"vt {a:.9f} {b:.9f}" for a, b in sphere.uvs]
-    lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in sphere.faces]
-    (zup / "mesh.obj").write_text("\n".join(lines) + "\n")
-    world = np.eye(4)
-    world[:3, :3] = Y_UP_FROM_Z_UP.T
-    for split in ("train", "test"):
-        t = read_json(zup / f"transforms_{split}.json")
-        for frame in t["frames"]:
-            frame["transform_matrix"] = (world @ np.array(frame["transform_matrix"]) @ np.diag([1, -1, -1, 1])).tolist()
-        write_json(zup / f"transforms_{split}.json", t)
+    rewrite_z_up(zup, make_mesh("sphere"), camera_axes=np.diag([1.0, -1.0, -1.0, 1.0]))
     _import(zup, tmp_path / "zup_out", up_axis="z", camera="opencv")
     a, b = read_ply(tmp_path / "ref_out/mesh.ply"), read_ply(tmp_path / "zup_out/mesh.ply")
     np.testing.assert_allclose(b.vertices, a.vertices, atol=1e-6)

@@ -11,6 +11,7 @@ from freqbrdf.methods import FREQUENCY_RULES, METHODS
 from freqbrdf.cameras import cameras_from_json, project
 from freqbrdf.io import read_exr, read_json, read_png
 from freqbrdf.meshes import read_ply
+from synthetic import rewrite_z_up
 
 
 def snakemake(repo, workdir, *args, extra_config=(), check=True, base="tiny.yaml"):
@@ -408,24 +409,11 @@ def _orb_fixture(export, root, roll_columns):
     """An exchange-layout capture in Stanford-ORB's conventions, from a capture this project exported."""
     import shutil
 
-    from freqbrdf.capture_io import Y_UP_FROM_Z_UP
-    from freqbrdf.io import write_exr, write_json
+    from freqbrdf.io import write_exr
 
     shutil.copytree(export, root)
     (root / "mesh.ply").unlink()
-    mesh = read_ply(export / "mesh.ply")
-    z_up = mesh.vertices @ Y_UP_FROM_Z_UP  # the inverse of the import's rotation
-    lines = ["# Z-up, no normals: the import recomputes them"]
-    lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in z_up] + [f"vt {u:.9g} {v:.9g}" for u, v in mesh.uvs]
-    lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in mesh.faces]
-    (root / "mesh.obj").write_text("\n".join(lines) + "\n")
-    world = np.eye(4)
-    world[:3, :3] = Y_UP_FROM_Z_UP.T
-    for split in ("train", "test"):
-        transforms = read_json(root / f"transforms_{split}.json")
-        for frame in transforms["frames"]:
-            frame["transform_matrix"] = (world @ np.array(frame["transform_matrix"])).tolist()
-        write_json(root / f"transforms_{split}.json", transforms)
+    rewrite_z_up(root, read_ply(export / "mesh.ply"))
     env = np.roll(read_exr(export / "envmap.exr"), roll_columns, axis=1)
     write_exr(root / "envmap.exr", env)
     (root / "test_env").mkdir()
@@ -590,6 +578,15 @@ def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
         table = table[~table.metric.isin(TIMING_METRICS)]
         return table.sort_values(["object", "env", "poses", "method", "relight_env", "metric"]).reset_index(drop=True)
 
+    def through_mitsuba(method):
+        entry = METHODS[method]
+        return entry.rule == "mitsuba_svbrdf" or (entry.start is not None and through_mitsuba(entry.start))
+
     ours, theirs = numbers(run), numbers(tmp_path)
-    assert len(theirs) > 100
-    pd.testing.assert_frame_equal(theirs, ours, check_exact=False, rtol=1e-9, atol=1e-12)
+    assert len(theirs) > 100 and (theirs.method == ours.method).all()
+    # Dr.Jit sums the differentiable renderer's gradients with atomics across threads, so the
+    # methods it optimises are reproducible to about 1e-5 (README, "Differentiable-rendering
+    # baseline"); everything else is bit-identical
+    loose = ours.method.map(through_mitsuba).to_numpy()
+    for part, tol in ((~loose, 1e-9), (loose, 1e-4)):
+        pd.testing.assert_frame_equal(theirs[part], ours[part], check_exact=False, rtol=tol, atol=tol)
