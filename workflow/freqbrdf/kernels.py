@@ -1,10 +1,12 @@
 """Compiled (numba) inner loops of the gradient-descent estimator.
 
 Each kernel fuses a computation that NumPy would spread over several
-texture-sized temporaries; its plain-NumPy counterpart in `freqbrdf.sh` or
-`freqbrdf.optimise` is the reference that the tests compare it with. The
+texture-sized temporaries. The tests compare each with an independent
+evaluation: `freqbrdf.sh.real_sh` (degree sums), a direct evaluation of the
+model and central differences (loss and gradient), dense quadrature of the
+environment (shadowing factors, through `freqbrdf.light.shadowed_light`). The
 kernels are compiled on first use and cached on disk (numba ``cache=True``),
-so only the first job on a machine pays the compile.
+so only the first job on a machine pays the compile (about 5 s).
 
 Threads: the kernels run on numba's thread pool; `set_threads` sizes it.
 Every output element is written by exactly one iteration of a parallel loop
