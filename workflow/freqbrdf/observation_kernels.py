@@ -35,6 +35,8 @@ import math
 import numba
 import numpy as np
 
+from .kernels import set_threads  # one thread setting for every compiled kernel
+
 __all__ = ["set_threads", "view_geometry", "pair_observations", "edge_free_distances", "nearest_faces"]
 
 
@@ -43,12 +45,6 @@ def _floats(array: np.ndarray) -> np.ndarray:
     so their arithmetic matches NumPy's on the same values); other types as float64."""
     array = np.asarray(array)
     return np.ascontiguousarray(array, array.dtype if array.dtype in (np.float32, np.float64) else np.float64)
-
-
-def set_threads(workers: int) -> None:
-    """Use ``workers`` threads (at most numba's configured maximum) in the kernels, e.g. the
-    job's Snakemake ``threads`` (numba would otherwise take every core of the machine)."""
-    numba.set_num_threads(max(1, min(int(workers), numba.config.NUMBA_NUM_THREADS)))
 
 
 @numba.njit(cache=True, inline="always")
