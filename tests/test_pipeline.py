@@ -585,8 +585,9 @@ def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
     ours, theirs = numbers(run), numbers(tmp_path)
     assert len(theirs) > 100 and (theirs.method == ours.method).all()
     # Dr.Jit sums the differentiable renderer's gradients with atomics across threads, so the
-    # methods it optimises are reproducible to about 1e-5 (README, "Differentiable-rendering
-    # baseline"); everything else is bit-identical
+    # methods it optimises differ slightly from run to run (README, "Differentiable-rendering
+    # baseline"; between two tiny runs: up to 3e-5 in PSNR-H, 7e-4 in a near-zero Pearson r);
+    # everything else is bit-identical
     loose = ours.method.map(through_mitsuba).to_numpy()
-    for part, tol in ((~loose, 1e-9), (loose, 1e-4)):
+    for part, tol in ((~loose, 1e-9), (loose, 1e-2)):
         pd.testing.assert_frame_equal(theirs[part], ours[part], check_exact=False, rtol=tol, atol=tol)
