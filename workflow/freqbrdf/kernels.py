@@ -289,6 +289,8 @@ def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
         fd = np.empty(n_deg)
         base = np.empty(3)
         spec = np.empty((max_pairs, 3))
+        slope = np.empty((max_pairs, 3))  # B = base slope + offset per pair and channel
+        offset = np.empty((max_pairs, 3))
         for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
             lo = start[s]
             k = start[s + 1] - lo
@@ -310,18 +312,15 @@ def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
                         den = 0.0
                         for i in range(k):
                             rise = spec[i, c] * (1.0 - schlick[lo + i])
-                            a = (1.0 - m) * e_pi[s, c] + m * rise
-                            b = r0_dielectric * (1.0 - m) * rise + schlick[lo + i] * spec[i, c]
-                            num += a * (radiance[lo + i, c] - b)
-                            den += a * a
+                            slope[i, c] = (1.0 - m) * e_pi[s, c] + m * rise
+                            offset[i, c] = r0_dielectric * (1.0 - m) * rise + schlick[lo + i] * spec[i, c]
+                            num += slope[i, c] * (radiance[lo + i, c] - offset[i, c])
+                            den += slope[i, c] * slope[i, c]
                         base[c] = min(1.0, max(0.0, num / max(den, 1e-12)))
                     cost = 0.0
                     for i in range(k):
                         for c in range(3):
-                            rise = spec[i, c] * (1.0 - schlick[lo + i])
-                            a = (1.0 - m) * e_pi[s, c] + m * rise
-                            b = r0_dielectric * (1.0 - m) * rise + schlick[lo + i] * spec[i, c]
-                            cost += abs(a * base[c] + b - radiance[lo + i, c])
+                            cost += abs(slope[i, c] * base[c] + offset[i, c] - radiance[lo + i, c])
                     if cost < best:
                         best = cost
                         out[s, 0] = base[0]

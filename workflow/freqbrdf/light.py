@@ -212,7 +212,7 @@ def shadowed_light(
     for a in range(0, n.shape[0], _TEXEL_CHUNK):
         b = min(n.shape[0], a + _TEXEL_CHUNK)
         shadowing_factors(normals32[a:b], dirs, alpha[a:b], g[: b - a])
-        # sum over each ring's azimuths, then over rings (LightQuadrature): about 7 times
+        # sum over each ring's azimuths, then over rings (LightQuadrature): about 6 times
         # fewer operations than one product with every node's Y_lm
         rings = np.matmul(azimuthal, g[: b - a].reshape(b - a, q.n_rings, -1).transpose(1, 2, 0))  # (n, C*M, t)
         per_ring = rings.reshape(q.n_rings, n_ch, n_orders, b - a).transpose(1, 2, 0, 3)  # (C, M, n, t)
