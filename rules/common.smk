@@ -246,6 +246,7 @@ def report_outputs():
     outputs += [f"results/figures/{o}/{e}/{POSES}/relight.png" for o, e in SYNTHETIC_CAPTURES]
     outputs += [f"results/figures/{o}/{e}/{POSES}/regulariser.png" for o, e in CAPTURES]
     outputs += [f"results/views/{o}/{e}/{POSES}/views.png" for o, e in VIEWS_CAPTURES]
+    outputs += [f"results/entropy_agreement/{o}/{e}/{POSES}/agreement.png" for o, e in AGREEMENT_CAPTURES]
     if CONVERGENCE_CURVES:
         outputs += [f"results/figures/{o}/{e}/{POSES}/convergence.png" for o, e in SYNTHETIC_CAPTURES]
     return outputs

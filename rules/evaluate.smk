@@ -21,6 +21,7 @@ rule metrics:
         benchmarks=[f for o, e, p, m in METRIC_TIMINGS for f in method_benchmarks(o, e, p, m)],
         extraction=[f"results/benchmarks/extract_observations/{o}_{e}_{POSES}.tsv" for o, e in SYNTHETIC_CAPTURES],
         views=[f"results/views/{o}/{e}/{POSES}/views.tsv" for o, e in VIEWS_CAPTURES],
+        agreement=[f"results/entropy_agreement/{o}/{e}/{POSES}/agreement.json" for o, e in AGREEMENT_CAPTURES],
         code=library("metrics"),
     output:
         "results/tables/metrics.csv",
@@ -42,5 +43,6 @@ rule metrics:
         timings=[(o, e, p, m, len(method_benchmarks(o, e, p, m))) for o, e, p, m in METRIC_TIMINGS],
         methods=METHODS,
         views=[(o, e, POSES) for o, e in VIEWS_CAPTURES],
+        agreement=[(o, e, POSES) for o, e in AGREEMENT_CAPTURES],
     script:
         "../workflow/scripts/metrics.py"

@@ -2,8 +2,7 @@
 # These rules read finished outputs only and take no config that upstream rules
 # use, so changing a metric setting reruns metrics, then these, and nothing else.
 
-# Stems of the table files (freqbrdf.tables.summaries keys): the paper's Tables 1, 2, 4, 5, 6 and the claims.
-TABLES = ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "table6_merge", "claims"]
+from freqbrdf.tables import SUMMARY_KEYS as TABLES  # stems of the table files: the paper's Tables 1-6 and the claims
 
 
 # Methods with a logged MSE curve (differentiable rendering) and those shown as points.
@@ -12,7 +11,7 @@ CONVERGENCE_POINTS = [m for m in METHODS if METHOD_REGISTRY[m].rule in FREQUENCY
 
 
 rule tables:
-    """The paper's Tables 1, 2, 4 and 5 with our numbers beside the paper's, and the
+    """The paper's Tables 1 to 6 with our numbers beside the paper's, and the
     claims table, as Markdown, LaTeX and HTML (the HTML pages are in the report)."""
     input:
         metrics="results/tables/metrics.csv",

@@ -52,6 +52,12 @@ def full_run(overrides=None) -> pd.DataFrame:
         ("freq", "views_6_mse_average"): 0.09, ("freq", "views_6_mean_entropy"): 0.6,
         ("freq", "views_12_mse_average"): 0.07, ("freq", "views_12_mean_entropy"): 0.5,
         ("freq", "views_24_mse_average"): 0.06, ("freq", "views_24_mean_entropy"): 0.45,
+        # the captures' own rows (empty method): the entropy agreement of Table 3
+        ("", "entropy_agreement_pearson_spectrum"): 0.86, ("", "entropy_agreement_pearson_angular"): 0.93,
+        ("", "entropy_agreement_pearson_mitsuba_reduced"): 0.97,
+        ("", "entropy_agreement_pearson_spectrum_reduced"): 0.84, ("", "entropy_agreement_pearson_angular_reduced"): 0.9,
+        ("", "entropy_agreement_time_mitsuba_s"): 40.0, ("", "entropy_agreement_time_angular_s"): 4.0,
+        ("", "entropy_agreement_time_spectrum_s"): 0.002,
     }
     values.update(overrides or {})
     rows = []
@@ -165,6 +171,9 @@ def test_every_claim_holds_on_consistent_data():
     ({("mitsuba", "pearson_entropy_error"): -0.1}, "Our entropy correlates positively with Mitsuba's per-texel error"),
     ({("mitsuba_merged", "mse_average"): 0.04}, "Merging captures by entropy beats their average"),
     ({("freq", "views_6_mean_entropy"): 0.4}, "With fewer views, error and entropy rise together"),
+    # below the paper's 0.89 minus its standard deviation 0.06 (Table 3)
+    ({("", "entropy_agreement_pearson_spectrum"): 0.82},
+     "The power-spectrum entropy agrees with the entropy Mitsuba's renders give"),
 ])
 def test_a_claim_flips_when_the_data_contradict_it(overrides, claim):
     flipped = [claim] if isinstance(claim, str) else list(claim)
@@ -379,6 +388,7 @@ def test_claims_quote_the_papers_numbers():
         "PSNR-H 27.04 vs 26.68 dB (Tables 1, 5)",
         "PSNR-H +0.44 dB, 19.87 s vs 69.96 s (Table 5)",
         "Pearson 0.13 to 0.21, mean 0.16 (Table 2)",
+        "Pearson 0.89 \u00b1 0.06 (angular 0.90, Table 3)",
         "MSE 0.03 vs 0.04 (Table 6)",
         "MSE and mean entropy both rise as views are dropped (Fig. 8)",
     ]
@@ -410,7 +420,28 @@ def test_extra_methods_follow_the_registrys_order():
     assert names[3:] == [m for m in METHODS if m in set(df.method) and m not in paired]
 
 
-def test_summaries_cover_the_five_tables_and_the_claims():
+def test_summaries_cover_the_six_tables_and_the_claims():
     keys = [s.key for s in tables.summaries(full_run(), PAPER, ENV_KINDS)]
-    assert keys == ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "table6_merge",
-                    "claims"]
+    assert keys == ["table1_relighting", "table2_parameters", "table3_agreement", "table4_ablation",
+                    "table5_finetune", "table6_merge", "claims"]
+    assert tuple(keys) == tables.SUMMARY_KEYS  # the file stems of rule tables
+
+
+def test_agreement_table_means_over_captures_beside_the_paper():
+    df = full_run()
+    df.loc[(df.object == "torus") & (df.metric == "entropy_agreement_pearson_angular"), "value"] = 0.83
+    table = tables.agreement_table(df, PAPER)
+    assert list(table.Entropy) == ["Entropy Mitsuba", "Entropy angular", "Entropy power spectrum"]
+    assert cell(table, "Pearson", Entropy="Entropy angular") == "0.88 \u00b1 0.05"  # 0.93 and 0.83
+    assert cell(table, "Pearson", Entropy="Entropy power spectrum") == "0.86 \u00b1 0.00"
+    assert cell(table, "Pearson", Entropy="Entropy Mitsuba") == "1.00"
+    assert cell(table, "Pearson (half the paths)", Entropy="Entropy Mitsuba") == "0.97"
+    assert cell(table, "Pearson (half the paths)", Entropy="Entropy angular") == "0.90"
+    assert cell(table, "Time", Entropy="Entropy angular") == "4 s"
+    assert cell(table, "Pearson (paper)", Entropy="Entropy power spectrum") == "0.89 \u00b1 0.06"
+    assert cell(table, "Time (paper)", Entropy="Entropy Mitsuba") == "900 s"
+    # without the rule's rows: missing, and the claim is not run
+    none = tables.agreement_table(df[df.method != ""], PAPER)
+    assert set(none.Pearson) == {tables.MISSING}
+    assert verdicts(df[df.method != ""])[
+        "The power-spectrum entropy agrees with the entropy Mitsuba's renders give"] == "not run"

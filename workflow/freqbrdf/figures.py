@@ -292,3 +292,32 @@ def views_figure(path: str | os.PathLike, table: pd.DataFrame, title: str) -> No
     twin.set_ylabel("mean entropy", color="tab:red")
     ax.set_title(title, fontsize=9)
     save_figure(fig, path, dpi=100)
+
+
+_AGREEMENT_PANELS = (("angular", "angular (our forward model)"), ("spectrum", "power spectrum"),
+                     ("mitsuba_reduced", "Mitsuba, half the paths"))
+
+
+def entropy_agreement_figure(path: str | os.PathLike, entropy: Mapping[str, np.ndarray],
+                             pearson: Mapping[str, float], title: str) -> None:
+    """Each cheap entropy of the same texels against the Mitsuba grid's (paper Table 3).
+
+    Parameters
+    ----------
+    entropy : mapping of str to ndarray
+        ``mitsuba``, ``angular``, ``spectrum`` and ``mitsuba_reduced``, each shape ``(S,)`` in [0, 1].
+    pearson : mapping of str to float
+        ``pearson_<name>`` against ``mitsuba``, printed in each panel.
+    title : str
+        Figure title.
+    """
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(_AGREEMENT_PANELS), figsize=(10.5, 3.6), layout="constrained", sharey=True)
+    for ax, (name, label) in zip(axes, _AGREEMENT_PANELS):
+        ax.scatter(entropy[name], entropy["mitsuba"], s=4, alpha=0.5, color="tab:blue", linewidths=0)
+        ax.plot([0, 1], [0, 1], color="0.6", linewidth=0.8)
+        ax.set(xlim=(0, 1), ylim=(0, 1), xlabel=f"entropy: {label}", aspect="equal")
+        ax.set_title(f"Pearson {pearson[f'pearson_{name}']:.2f}", fontsize=9)
+    axes[0].set_ylabel("entropy: Mitsuba grid")
+    fig.suptitle(title, fontsize=10)
+    save_figure(fig, path, dpi=100)

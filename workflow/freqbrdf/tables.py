@@ -60,6 +60,8 @@ ABLATION_FIELDS = ("psnr_h", "psnr_l", "ssim", "lpips", "time_orb_s", "mse", "ti
 """Numbers of a row of the paper's Table 4 (besides its shadowing and masking flags)."""
 AVERAGE = "Average"
 """The key of the paper's Table 2 values averaged over its environments."""
+AGREEMENT_FIELDS = ("pearson", "std", "time_s")
+"""Numbers of a row of the paper's Table 3."""
 CRITERIA_FIELDS = ("accuracy_tolerance_mse", "relight_tolerance_db", "finetune_time_divisor")
 
 # The paper's rows that the claims quote: Tables 1 and 2 label their methods
@@ -67,8 +69,10 @@ CRITERIA_FIELDS = ("accuracy_tolerance_mse", "relight_tolerance_db", "finetune_t
 MITSUBA, OURS, SPECTRUM = "Mitsuba", "Ours", "Ours-Spectrum Only"
 FINETUNED, MITSUBA_FULL = "Ours", "Full optimization - Constant"
 MERGE_AVERAGE = "Average"  # Table 6: the mean over the separate environments
+# Table 3's rows, keyed by the entropy of freqbrdf.entropy_agreement they stand beside.
+AGREEMENT_ROWS = {"mitsuba": "Entropy Mitsuba", "angular": "Entropy angular", "spectrum": "Entropy power spectrum"}
 CLAIM_ROWS = {"table1": (MITSUBA, OURS), "table2": (MITSUBA, OURS, SPECTRUM), "table5": (FINETUNED, MITSUBA_FULL),
-              "table6": (MERGE_AVERAGE,)}
+              "table6": (MERGE_AVERAGE,), "table3": tuple(AGREEMENT_ROWS.values())}
 
 
 class PaperResultsError(ValueError):
@@ -126,6 +130,8 @@ class PaperResults:
         The Table 2 row whose per-texel error the paper correlates with our entropy.
     correlation : Mapping[str, float]
         Paper environment name, or :data:`AVERAGE`, -> that correlation.
+    table3 : Mapping[str, Mapping[str, float]]
+        Row label -> :data:`AGREEMENT_FIELDS` -> value (entropy agreement).
     table4 : Mapping[str, AblationRow]
         Row label -> flags and numbers; one row per (shadowing, masking) pair.
     table6 : Mapping[str, tuple of float]
@@ -138,6 +144,7 @@ class PaperResults:
     table2: Mapping[str, ParameterRow]
     correlation_with: str
     correlation: Mapping[str, float]
+    table3: Mapping[str, Mapping[str, float]]
     table4: Mapping[str, AblationRow]
     table5: Mapping[str, Mapping[str, float]]
     table6: Mapping[str, tuple[float, float, float, float]]
@@ -254,11 +261,14 @@ def parse_paper_results(data: object) -> PaperResults:
     PaperResultsError
         ``key <dotted.path>: <what is wrong>``.
     """
-    top = _record(data, "", ("table1", "table2", "table4", "table5", "table6", "claims"))
+    top = _record(data, "", ("table1", "table2", "table3", "table4", "table5", "table6", "claims"))
     environments, table2, correlated, correlation = _table2(top["table2"])
     paper = PaperResults(
         table1=_relight_rows(top["table1"], "table1"), environments=environments, table2=table2,
-        correlation_with=correlated, correlation=correlation, table4=_table4(top["table4"]),
+        correlation_with=correlated, correlation=correlation,
+        table3={label: _numbers(row, _key("table3", label), AGREEMENT_FIELDS)
+                for label, row in _mapping(top["table3"], "table3").items()},
+        table4=_table4(top["table4"]),
         table5=_relight_rows(top["table5"], "table5"),
         table6={label: _mse_parts(row, _key("table6", label)) for label, row in _mapping(top["table6"], "table6").items()},
         criteria=ClaimCriteria(**_numbers(top["claims"], "claims", CRITERIA_FIELDS)),
@@ -304,7 +314,7 @@ def check_tidy(df: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     DataFrame
-        A copy with ``relight_env`` as strings ('' where empty) and ``value`` as float.
+        A copy with ``method`` and ``relight_env`` as strings ('' where empty) and ``value`` as float.
 
     Raises
     ------
@@ -315,8 +325,10 @@ def check_tidy(df: pd.DataFrame) -> pd.DataFrame:
     if missing:
         raise ValueError(f"metrics table lacks columns {missing} (has {list(df.columns)})")
     out = df.copy()
-    # read_csv turns empty relight_env cells into NaN; compare them as ''.
-    out["relight_env"] = out["relight_env"].fillna("").astype(str)
+    # read_csv turns empty cells into NaN; compare them as ''. An empty method marks a
+    # capture's own rows (the entropy agreement), an empty relight_env every row but relighting.
+    for column in ("method", "relight_env"):
+        out[column] = out[column].fillna("").astype(str)
     out["value"] = pd.to_numeric(out["value"], errors="coerce").astype(float)
     return out
 
@@ -651,6 +663,44 @@ def merge_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd.Da
     return pd.DataFrame(rows, columns=["Method", "method", "MSE", "MSE (paper)"])
 
 
+def _capture_metric(df: pd.DataFrame, metric: str) -> pd.Series:
+    """Per-capture values of a metric of the captures themselves (rows with an empty method)."""
+    return df[(df.method == "") & (df.metric == metric)].value.dropna()
+
+
+def agreement_table(df: pd.DataFrame, paper: PaperResults, digits: int = 2) -> pd.DataFrame:
+    """Paper Table 3: each entropy's Pearson correlation with the Mitsuba grid's, and its time.
+
+    Returns
+    -------
+    DataFrame of str
+        ``Entropy, Pearson, Pearson (half the paths), Time, Pearson (paper), Time (paper)``:
+        means (and standard deviations) over the captures of the run's
+        ``entropy_agreement_*`` rows; ``-`` where the rule did not run.
+    """
+    rows = []
+    for name, label in AGREEMENT_ROWS.items():
+        if name == "mitsuba":
+            r, r_half = pd.Series([1.0]), _capture_metric(df, "entropy_agreement_pearson_mitsuba_reduced")
+        else:
+            r = _capture_metric(df, f"entropy_agreement_pearson_{name}")
+            r_half = _capture_metric(df, f"entropy_agreement_pearson_{name}_reduced")
+        seconds = _capture_metric(df, f"entropy_agreement_time_{name}_s")
+        ran = len(seconds) > 0
+        spread = f" \u00b1 {r.std(ddof=0):.{digits}f}" if len(r) > 1 else ""
+        rows.append({
+            "Entropy": label,
+            "Pearson": f"{r.mean():.{digits}f}{spread}" if ran and len(r) else MISSING,
+            "Pearson (half the paths)": fmt(r_half.mean() if len(r_half) else None, digits),
+            "Time": fmt_time(seconds.mean() if ran else None),
+            "Pearson (paper)": f"{fmt_paper(paper.table3[label]['pearson'], 2)} \u00b1 "
+                               f"{fmt_paper(paper.table3[label]['std'], 2)}",
+            "Time (paper)": fmt_time(paper.table3[label]["time_s"]),
+        })
+    return pd.DataFrame(rows, columns=["Entropy", "Pearson", "Pearson (half the paths)", "Time", "Pearson (paper)",
+                                       "Time (paper)"])
+
+
 # ---------------------------------------------------------------------------
 # Claims
 # ---------------------------------------------------------------------------
@@ -861,6 +911,24 @@ def _merge_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
     )
 
 
+def _agreement_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
+    row = paper.table3[AGREEMENT_ROWS["spectrum"]]
+    threshold = row["pearson"] - row["std"]
+    r = _capture_metric(df, "entropy_agreement_pearson_spectrum")
+    angular = _capture_metric(df, "entropy_agreement_pearson_angular")
+    known = len(r) > 0
+    return Claim(
+        "The power-spectrum entropy agrees with the entropy Mitsuba's renders give",
+        f"Pearson {fmt_paper(row['pearson'], 2)} \u00b1 {fmt_paper(row['std'], 2)} "
+        f"(angular {fmt_paper(paper.table3[AGREEMENT_ROWS['angular']]['pearson'], 2)}, Table 3)",
+        f"Pearson {fmt(r.mean(), 2)} (angular {fmt(angular.mean() if len(angular) else None, 2)}) "
+        f"over {len(r)} capture(s)" if known else MISSING,
+        _verdict(bool(r.mean() >= threshold) if known else None),
+        f"mean Pearson(spectrum entropy, Mitsuba grid entropy) >= {threshold:.2f} "
+        "(the paper's mean minus its standard deviation)",
+    )
+
+
 def views_sweep(df: pd.DataFrame) -> pd.DataFrame:
     """The views sweep's rows as a table: ``object, env, views, mse_average, mean_entropy``."""
     rows = df[df.metric.str.fullmatch(r"views_\d+_(mse_average|mean_entropy)")]
@@ -894,7 +962,7 @@ def _views_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
 
 _CLAIMS: tuple[Callable[[pd.DataFrame, PaperResults], Claim], ...] = (
     _speed_claim, _speed_order_claim, _accuracy_claim, _relight_claim, _spectrum_claim,
-    _ablation_claim, _finetune_claim, _finetune_time_claim, _entropy_claim, _merge_claim, _views_claim,
+    _ablation_claim, _finetune_claim, _finetune_time_claim, _entropy_claim, _agreement_claim, _merge_claim, _views_claim,
 )
 
 
@@ -916,6 +984,9 @@ def claims(df: pd.DataFrame, paper: PaperResults) -> pd.DataFrame:
        PSNR-H(freq+mitsuba) > PSNR-H(mitsuba) and
        time(freq+mitsuba) < time(mitsuba) / finetune_time_divisor.
     9. Entropy predicts Mitsuba's error: mean Pearson(entropy, squared error) > 0.
+    10. Entropy agreement (Table 3): mean Pearson(spectrum entropy, Mitsuba grid entropy) >= the
+        paper's 0.89 minus its standard deviation 0.06.
+    11. Merging by entropy beats the average (Table 6); 12. fewer views raise MSE and entropy (Fig. 8).
 
     A claim whose methods did not run (or lack the metric) is ``not run``.
 
@@ -1087,6 +1158,11 @@ class Summary:
     table: pd.DataFrame
 
 
+SUMMARY_KEYS = ("table1_relighting", "table2_parameters", "table3_agreement", "table4_ablation", "table5_finetune",
+                "table6_merge", "claims")
+"""Keys of `summaries`, in its order: the stems of rule tables' output files."""
+
+
 def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str] | None = None) -> list[Summary]:
     """Every summary table of the report, in the paper's order, then the claims.
 
@@ -1102,8 +1178,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
     Returns
     -------
     list of Summary
-        Keys ``table1_relighting``, ``table2_parameters``, ``table4_ablation``,
-        ``table5_finetune``, ``table6_merge``, ``claims`` (the output file stems).
+        Keyed by :data:`SUMMARY_KEYS` (the output file stems).
     """
     n_captures = len(df[["object", "env"]].drop_duplicates())
     n_truth = len(df[df.metric == "mse_average"][["object", "env"]].drop_duplicates())
@@ -1123,6 +1198,13 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "Error-entropy correlation: Pearson correlation between our entropy and the method's "
                 "per-texel squared error (the paper correlates with Mitsuba's). " + scope,
                 parameter_table(df, paper, env_kinds)),
+        Summary("table3_agreement", "Table 3: entropy agreement",
+                "Pearson correlation, over a seeded sample of each capture's observed texels, of each entropy "
+                "with the entropy of a grid of uniform materials (roughness x metallic x base colour) path traced "
+                "by Mitsuba at the training views; mean \u00b1 standard deviation over the captures. 'Half the "
+                "paths': against the Mitsuba grid from one of its two sample sets. Times are for the sampled "
+                "texels (ours) and for whole captures on a GPU (paper). " + scope,
+                agreement_table(df, paper)),
         Summary("table4_ablation", "Table 4: ablation of shadowing and masking",
                 "Our model with and without the shadowing G1(theta_i) and masking G1(theta_o) terms; "
                 "rh2001 has neither (Ramamoorthi and Hanrahan 2001). The paper's relighting numbers are on "

@@ -157,9 +157,21 @@ def views_rows(smk):
     return rows
 
 
+def agreement_rows(smk):
+    """entropy_agreement_<key> for every key of each scored capture's agreement.json (paper Table 3:
+    Pearson correlations with the Mitsuba grid's entropy, times, settings); rows of the capture,
+    with an empty method."""
+    rows = []
+    for (obj, env, poses), summary in keyed(smk.params.agreement, smk.input.agreement).items():
+        key = dict(object=obj, env=env, poses=poses, method="", relight_env="")
+        result = read_json(summary)
+        rows += [key | dict(metric=f"entropy_agreement_{name}", value=value) for name, value in result.items()]
+    return rows
+
+
 def main(smk, log):
     rows = parameter_rows(smk) + relight_rows(smk, log) + timing_rows(smk)
-    rows += equal_accuracy_rows(smk, rows, log) + views_rows(smk)
+    rows += equal_accuracy_rows(smk, rows, log) + views_rows(smk) + agreement_rows(smk)
     table = pd.DataFrame(rows, columns=COLUMNS)
     with atomic_path(smk.output[0]) as tmp:
         table.to_csv(tmp, index=False, float_format="%.6g")

@@ -1,4 +1,4 @@
-"""Rule tables: the paper's Tables 1, 2, 4, 5, 6 and the claims table from the tidy metrics,
+"""Rule tables: the paper's Tables 1 to 6 and the claims table from the tidy metrics,
 as Markdown and LaTeX files, and as HTML pages for the Snakemake report."""
 
 import pandas as pd

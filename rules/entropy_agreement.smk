@@ -1,0 +1,41 @@
+# Entropy agreement (paper Table 3) on the first synthetic captures
+# (config entropy_agreement.captures; none when 0).
+AGREEMENT_CAPTURES = SYNTHETIC_CAPTURES[: config["entropy_agreement"]["captures"]]
+
+
+rule entropy_agreement:
+    """On a seeded sample of a capture's observed texels, the entropy of a grid of uniform
+    materials path traced by Mitsuba, of the same grid through our forward model (angular),
+    and of the power spectra, with their Pearson correlations and times."""
+    input:
+        observations="results/observations/{object}/{env}/{poses}",
+        sh="results/sh/{object}/{env}/{poses}",
+        envmap=envmap_file,
+        mesh=mesh_file,
+        code=library("entropy_agreement"),
+    output:
+        summary="results/entropy_agreement/{object}/{env}/{poses}/agreement.json",
+        arrays="results/entropy_agreement/{object}/{env}/{poses}/entropy.npz",
+        figure=report(
+            "results/entropy_agreement/{object}/{env}/{poses}/agreement.png",
+            category="Uncertainty",
+            caption="../report/entropy_agreement.rst",
+            labels={"capture": "{object} / {env}", "figure": "entropy agreement"},
+        ),
+    log:
+        "results/logs/entropy_agreement/{object}_{env}_{poses}.log",
+    benchmark:
+        "results/benchmarks/entropy_agreement/{object}_{env}_{poses}.tsv"
+    conda:
+        "../envs/freqbrdf.yaml"
+    threads: 2
+    resources:
+        mem_mb=2000,
+    params:
+        settings={k: v for k, v in config["entropy_agreement"].items() if k != "captures"},
+        spectrum=config["spectrum"],
+        lmax=config["optimise"]["lmax"],
+        max_depth=config["render"]["max_depth"],
+        seed=lambda w: derived_seed(config["seed"], "entropy_agreement", w.object, w.env, w.poses),
+    script:
+        "../workflow/scripts/entropy_agreement.py"
