@@ -184,6 +184,59 @@ def test_time_to_reach_interpolates_and_says_never():
 
 
 # --------------------------------------------------------------------------
+# the principled BRDF that brdf_log_rmse scores
+# --------------------------------------------------------------------------
+import oracles  # noqa: E402
+from freqbrdf.metrics import ggx_ndf, principled_brdf  # noqa: E402
+
+
+def test_ggx_ndf_is_normalised_over_projected_half_vectors() -> None:
+    # int D(h) cos(theta_h) d(omega_h) = 1 for every width: a wrong exponent or factor breaks it
+    theta = np.linspace(0.0, np.pi / 2, 400_001)
+    for alpha in (0.03, 0.2, 0.7, 1.0):
+        integrand = ggx_ndf(np.cos(theta), alpha) * np.cos(theta) * np.sin(theta) * 2 * np.pi
+        assert np.trapezoid(integrand, theta) == pytest.approx(1.0, abs=2e-4)
+    assert ggx_ndf(1.0, 0.1) == pytest.approx(1 / (np.pi * 0.01), rel=1e-14)
+
+
+def test_principled_brdf_matches_an_evaluation_from_direction_vectors() -> None:
+    rng = np.random.default_rng(3)
+    n_texels, n_pairs = 5, 40
+    base = rng.uniform(0, 1, (n_texels, 3))
+    roughness = rng.uniform(0.1, 1, n_texels)  # above the alpha clamp, which the oracle lacks
+    metallic = np.array([0.0, 1.0, *rng.uniform(0, 1, n_texels - 2)])
+    wi, wo = rng.normal(size=(2, n_pairs, 3))
+    wi[:, 2], wo[:, 2] = np.abs(wi[:, 2]) + 0.05, np.abs(wo[:, 2]) + 0.05  # above the surface
+    wi, wo = wi / np.linalg.norm(wi, axis=1, keepdims=True), wo / np.linalg.norm(wo, axis=1, keepdims=True)
+    h = (wi + wo) / np.linalg.norm(wi + wo, axis=1, keepdims=True)
+    cos_d = np.sum(wi * h, axis=1)
+    f = principled_brdf(base, roughness, metallic, wi[:, 2], wo[:, 2], h[:, 2], cos_d)
+    assert f.shape == (n_texels, n_pairs, 3)
+    kd, ks, alpha = oracles.lobes_from_principled(base, roughness, metallic)
+    a = alpha[:, None]
+    # D from the half vector's slope: alpha^2 / (pi cos^4 (alpha^2 + tan^2)^2)
+    tan2_h = (h[:, 0] ** 2 + h[:, 1] ** 2) / h[:, 2] ** 2
+    d = a**2 / (np.pi * h[:, 2] ** 4 * (a**2 + tan2_h) ** 2)
+    g = oracles.smith_g1(wi[:, 2], a) * oracles.smith_g1(wo[:, 2], a)
+    fresnel = oracles.schlick_fresnel(ks[:, None, :], cos_d[None, :, None])
+    expected = kd[:, None, :] / np.pi + (d * g / (4 * wi[:, 2] * wo[:, 2]))[..., None] * fresnel
+    np.testing.assert_allclose(f, expected, rtol=1e-10)
+    # reciprocal: swapping the directions keeps the half vector and the angle to it
+    np.testing.assert_allclose(principled_brdf(base, roughness, metallic, wo[:, 2], wi[:, 2], h[:, 2], cos_d), f)
+    # the float type follows the cosines'
+    assert principled_brdf(base, roughness, metallic, *(c.astype(np.float32) for c in
+                                (wi[:, 2], wo[:, 2], h[:, 2], cos_d))).dtype == np.float32
+
+
+def test_principled_brdf_refuses_directions_below_the_surface() -> None:
+    ones = np.ones(2)
+    with pytest.raises(ValueError, match=r"cos_o must be positive \(above the surface\), got -0.5"):
+        principled_brdf(np.full((1, 3), 0.5), [0.5], [0.0], ones, np.array([1.0, -0.5]), ones, ones)
+    with pytest.raises(ValueError, match=r"base_color must have shape \(\*, 3\)"):
+        principled_brdf(np.full((1, 4), 0.5), [0.5], [0.0], ones, ones, ones, ones)
+
+
+# --------------------------------------------------------------------------
 # BRDF-space error and the scale-invariant base colour
 # --------------------------------------------------------------------------
 from freqbrdf.metrics import base_color_si_scores, brdf_directions, brdf_log_rmse  # noqa: E402

@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .brdf import TEXTURES, principled_brdf
+from .brdf import R0_DIELECTRIC, TEXTURES, alpha_from_roughness, smith_g1, tan2_theta
 from .colour import to_srgb
+from .validation import check_shape
 
 
 def parameter_mse(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray], texels: np.ndarray) -> dict[str, float]:
@@ -68,6 +69,81 @@ def parameter_error_map(truth: dict[str, np.ndarray], estimate: dict[str, np.nda
 # --------------------------------------------------------------------------
 # BRDF space: the reflectance the parameters define, not the parameters
 # --------------------------------------------------------------------------
+# The full BRDF is composed here from brdf.py's parts rather than added to brdf.py:
+# nearly every rule's script imports brdf.py, so editing it would rerun the whole benchmark.
+def ggx_ndf(cos_h: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """GGX (Trowbridge-Reitz) microfacet distribution ``alpha^2 / (pi ((alpha^2 - 1) cos^2 theta_h + 1)^2)``.
+
+    Parameters
+    ----------
+    cos_h : numpy.ndarray
+        Cosine of the half vector's angle to the normal, in [0, 1], broadcastable with ``alpha``.
+    alpha : numpy.ndarray
+        GGX width (dimensionless, > 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        Per steradian; ``1 / (pi alpha^2)`` at ``cos_h = 1``, ``1 / pi`` everywhere at ``alpha = 1``.
+    """
+    a2 = alpha * alpha
+    q = (a2 - 1.0) * (cos_h * cos_h) + 1.0
+    return a2 / (np.pi * q * q)
+
+
+def principled_brdf(
+    base_color: np.ndarray, roughness: np.ndarray, metallic: np.ndarray,
+    cos_i: np.ndarray, cos_o: np.ndarray, cos_h: np.ndarray, cos_d: np.ndarray,
+) -> np.ndarray:
+    """The principled BRDF of the estimators, per texel and direction pair.
+
+    ``f = (1 - m) base / pi + D(theta_h) G1(theta_i) G1(theta_o) F(theta_d) / (4 cos theta_i cos theta_o)``
+    with GGX ``D`` (`ggx_ndf`) and Smith ``G1`` (`smith_g1`) of width
+    `alpha_from_roughness`, and Schlick's ``F = R0 + (1 - R0)(1 - cos theta_d)^5``,
+    ``R0 = 0.04 (1 - m) + m base``: the model whose spherical-harmonic form
+    :mod:`freqbrdf.optimise` fits (it takes F at theta_o, which equals
+    theta_d at the lobe's mirror peak). As there, the diffuse lobe is not
+    reduced by the specular one's Fresnel.
+
+    Parameters
+    ----------
+    base_color : numpy.ndarray
+        Shape ``(T, 3)``, linear, in [0, 1].
+    roughness, metallic : numpy.ndarray
+        Shape ``(T,)``, in [0, 1].
+    cos_i, cos_o : numpy.ndarray
+        Shape ``(P,)``, cosines of the incoming and outgoing directions to the normal, in (0, 1].
+    cos_h, cos_d : numpy.ndarray
+        Shape ``(P,)``: of the half vector to the normal, and of the incoming direction to the half vector.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(T, P, 3)`` (a view of a channels-first array), per steradian,
+        in the float type of ``cos_i`` (float32 halves the time of the large arrays).
+    """
+    dtype = np.result_type(cos_i, np.float32)
+    b = np.asarray(base_color).astype(dtype, copy=False)
+    check_shape(b, "base_color", (None, 3))
+    r, m = np.asarray(roughness), np.asarray(metallic).astype(dtype, copy=False)
+    check_shape(r, "roughness", (b.shape[0],))
+    check_shape(m, "metallic", (b.shape[0],))
+    directions = [np.asarray(c).astype(dtype, copy=False) for c in (cos_i, cos_o, cos_h, cos_d)]
+    for name, c in zip(("cos_i", "cos_o", "cos_h", "cos_d"), directions):
+        check_shape(c, name, (directions[0].shape[0],))
+    ci, co, ch, cd = directions
+    for name, c in (("cos_i", ci), ("cos_o", co)):
+        if not np.all(c > 0):
+            raise ValueError(f"principled_brdf: {name} must be positive (above the surface), got {float(c[~(c > 0)][0])}")
+    alpha = alpha_from_roughness(r)[0].astype(dtype)[:, None]
+    specular = ggx_ndf(ch, alpha) * smith_g1(tan2_theta(ci), alpha) * smith_g1(tan2_theta(co), alpha) / (4 * ci * co)
+    # channels first while computing: numpy's inner loops then run over the P pairs, not over 3 channels
+    r0 = (R0_DIELECTRIC * (1 - m) + m * b.T)[:, :, None]
+    s5 = (1 - cd) ** 5
+    diffuse = ((1 - m) * b.T / dtype.type(np.pi))[:, :, None]
+    return np.moveaxis(diffuse + specular * (r0 + (1 - r0) * s5), 0, -1)
+
+
 BRDF_GRID = (12, 12, 6)
 """Sample counts of theta_h, theta_d and phi_d of `brdf_directions` (646 pairs above the surface)."""
 _BRDF_CHUNK = 64  # texels per evaluation: its (64, P, 3) float32 arrays stay in cache (3x faster than 512)
