@@ -1133,7 +1133,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "Average (base colour, roughness, metallic) MSE against the ground-truth textures over "
                 "observed texels; 'paper' rows give the paper's value for the environment of the same kind. "
                 "BRDF log-RMSE: RMS difference of log(1 + f cos theta_i) between the estimated and true "
-                "BRDF over 646 fixed direction pairs, on the same texels; Base SI-PSNR/SSIM: the base colour "
+                "BRDF over a fixed set of direction pairs, on the same texels; Base SI-PSNR/SSIM: the base colour "
                 "after a per-channel least-squares scale (Stanford-ORB), sRGB; both means over captures. "
                 "Error-entropy correlation: Pearson correlation between our entropy and the method's "
                 "per-texel squared error (the paper correlates with Mitsuba's). " + scope,
