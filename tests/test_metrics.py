@@ -181,3 +181,179 @@ def test_time_to_reach_interpolates_and_says_never():
     assert time_to_reach(t, np.array([0.2, 0.05, 0.2, 0.2]), 0.1) == pytest.approx(10 * (0.1 / 0.15))
     with pytest.raises(ValueError, match="must not decrease"):
         time_to_reach(t[::-1], mse, 0.1)
+
+
+# --------------------------------------------------------------------------
+# the principled BRDF that brdf_log_rmse scores
+# --------------------------------------------------------------------------
+import oracles  # noqa: E402
+from freqbrdf.metrics import ggx_ndf, principled_brdf  # noqa: E402
+
+
+def test_ggx_ndf_is_normalised_over_projected_half_vectors() -> None:
+    # int D(h) cos(theta_h) d(omega_h) = 1 for every width: a wrong exponent or factor breaks it
+    theta = np.linspace(0.0, np.pi / 2, 400_001)
+    for alpha in (0.03, 0.2, 0.7, 1.0):
+        integrand = ggx_ndf(np.cos(theta), alpha) * np.cos(theta) * np.sin(theta) * 2 * np.pi
+        assert np.trapezoid(integrand, theta) == pytest.approx(1.0, abs=2e-4)
+    assert ggx_ndf(1.0, 0.1) == pytest.approx(1 / (np.pi * 0.01), rel=1e-14)
+
+
+def test_principled_brdf_matches_an_evaluation_from_direction_vectors() -> None:
+    rng = np.random.default_rng(3)
+    n_texels, n_pairs = 5, 40
+    base = rng.uniform(0, 1, (n_texels, 3))
+    roughness = rng.uniform(0.1, 1, n_texels)  # above the alpha clamp, which the oracle lacks
+    metallic = np.array([0.0, 1.0, *rng.uniform(0, 1, n_texels - 2)])
+    wi, wo = rng.normal(size=(2, n_pairs, 3))
+    wi[:, 2], wo[:, 2] = np.abs(wi[:, 2]) + 0.05, np.abs(wo[:, 2]) + 0.05  # above the surface
+    wi, wo = wi / np.linalg.norm(wi, axis=1, keepdims=True), wo / np.linalg.norm(wo, axis=1, keepdims=True)
+    h = (wi + wo) / np.linalg.norm(wi + wo, axis=1, keepdims=True)
+    cos_d = np.sum(wi * h, axis=1)
+    f = principled_brdf(base, roughness, metallic, wi[:, 2], wo[:, 2], h[:, 2], cos_d)
+    assert f.shape == (n_texels, n_pairs, 3)
+    kd, ks, alpha = oracles.lobes_from_principled(base, roughness, metallic)
+    a = alpha[:, None]
+    # D from the half vector's slope: alpha^2 / (pi cos^4 (alpha^2 + tan^2)^2)
+    tan2_h = (h[:, 0] ** 2 + h[:, 1] ** 2) / h[:, 2] ** 2
+    d = a**2 / (np.pi * h[:, 2] ** 4 * (a**2 + tan2_h) ** 2)
+    g = oracles.smith_g1(wi[:, 2], a) * oracles.smith_g1(wo[:, 2], a)
+    fresnel = oracles.schlick_fresnel(ks[:, None, :], cos_d[None, :, None])
+    expected = kd[:, None, :] / np.pi + (d * g / (4 * wi[:, 2] * wo[:, 2]))[..., None] * fresnel
+    np.testing.assert_allclose(f, expected, rtol=1e-10)
+    # reciprocal: swapping the directions keeps the half vector and the angle to it
+    np.testing.assert_allclose(principled_brdf(base, roughness, metallic, wo[:, 2], wi[:, 2], h[:, 2], cos_d), f)
+    # the float type follows the cosines'
+    assert principled_brdf(base, roughness, metallic, *(c.astype(np.float32) for c in
+                                (wi[:, 2], wo[:, 2], h[:, 2], cos_d))).dtype == np.float32
+
+
+def test_principled_brdf_refuses_directions_below_the_surface() -> None:
+    ones = np.ones(2)
+    with pytest.raises(ValueError, match=r"cos_o must be positive \(above the surface\), got -0.5"):
+        principled_brdf(np.full((1, 3), 0.5), [0.5], [0.0], ones, np.array([1.0, -0.5]), ones, ones)
+    with pytest.raises(ValueError, match=r"base_color must have shape \(\*, 3\)"):
+        principled_brdf(np.full((1, 4), 0.5), [0.5], [0.0], ones, ones, ones, ones)
+
+
+# --------------------------------------------------------------------------
+# BRDF-space error and the scale-invariant base colour
+# --------------------------------------------------------------------------
+from freqbrdf.metrics import base_color_si_scores, brdf_directions, brdf_log_rmse  # noqa: E402
+
+
+def _textures(base, roughness, metallic, r: int = 4):
+    """Constant textures of one material."""
+    return {"base_color": np.broadcast_to(np.asarray(base, float), (r, r, 3)).copy(),
+            "roughness": np.full((r, r), float(roughness)), "metallic": np.full((r, r), float(metallic))}
+
+
+def test_brdf_directions_are_real_reciprocal_pairs_above_the_surface():
+    cos_i, cos_o, cos_h, cos_d = brdf_directions()
+    assert len(cos_i) == 646
+    for c in (cos_i, cos_o, cos_h, cos_d):
+        assert np.all((c > 0) & (c <= 1))
+    # the outgoing direction is the incoming one mirrored about the half vector: o = 2 (i.h) h - i
+    np.testing.assert_allclose(cos_i + cos_o, 2 * cos_d * cos_h, rtol=1e-12)
+    # and i lies on the cone of angle theta_d about h
+    sin_h, sin_d = np.sqrt(1 - cos_h**2), np.sqrt(1 - cos_d**2)
+    assert np.all(np.abs(cos_i - cos_h * cos_d) <= sin_h * sin_d + 1e-12)
+    # every pair's reverse is in the set
+    pairs = np.round(np.stack([cos_i, cos_o, cos_h, cos_d], axis=1), 12)
+    swapped = pairs[:, [1, 0, 2, 3]]
+    assert sorted(map(tuple, pairs)) == sorted(map(tuple, swapped))
+    # the first half-angle sample, (pi / 2) (1/24)^2, resolves the sharpest lobe (alpha = 0.003, 0.17 degrees)
+    assert np.degrees(np.arccos(cos_h.max())) == pytest.approx(0.15625)
+
+
+def test_brdf_error_is_zero_for_identical_textures_symmetric_and_positive_otherwise():
+    rng = np.random.default_rng(11)
+    a = {"base_color": rng.random((8, 8, 3)), "roughness": rng.random((8, 8)), "metallic": rng.random((8, 8))}
+    b = {name: rng.random(v.shape) for name, v in a.items()}
+    texels = np.arange(64)
+    assert brdf_log_rmse(a, {k: v.copy() for k, v in a.items()}, texels) == 0.0
+    assert brdf_log_rmse(a, b, texels) == brdf_log_rmse(b, a, texels) > 0.1
+
+
+def test_brdf_error_of_a_rough_dielectric_has_a_closed_form():
+    # alpha = 1: D = 1 / pi and G1 = 2 cos / (1 + cos), so with metallic 0
+    # f = base / pi + F(theta_d) / (pi (1 + cos_i) (1 + cos_o)), F = 0.04 + 0.96 (1 - cos_d)^5
+    cos_i, cos_o, _, cos_d = brdf_directions()
+    specular = (0.04 + 0.96 * (1 - cos_d) ** 5) / (np.pi * (1 + cos_i) * (1 + cos_o))
+    true_base, estimated_base = np.array([0.2, 0.5, 0.8]), np.array([0.3, 0.45, 0.1])
+    log = [np.log1p((b[None, :] / np.pi + specular[:, None]) * cos_i[:, None]) for b in (true_base, estimated_base)]
+    expected = np.sqrt(np.mean((log[1] - log[0]) ** 2))
+    value = brdf_log_rmse(_textures(true_base, 1.0, 0.0), _textures(estimated_base, 1.0, 0.0), np.arange(16))
+    assert value == pytest.approx(expected, rel=1e-5)  # float32 evaluation
+
+
+def test_brdf_error_averages_squares_over_texels_like_the_parameter_mse():
+    rng = np.random.default_rng(12)
+    a = {"base_color": rng.random((8, 8, 3)), "roughness": rng.random((8, 8)), "metallic": rng.random((8, 8))}
+    b = {name: rng.random(v.shape) for name, v in a.items()}
+    first, second = np.arange(0, 40), np.arange(40, 50)
+    both = brdf_log_rmse(a, b, np.concatenate([first, second]))
+    parts = [brdf_log_rmse(a, b, t) ** 2 * len(t) for t in (first, second)]
+    assert both == pytest.approx(np.sqrt(sum(parts) / 50), rel=1e-6)
+    # texels outside the selection do not count
+    b["roughness"].ravel()[60:] = 1 - b["roughness"].ravel()[60:]
+    assert brdf_log_rmse(a, b, first) ** 2 * 40 == pytest.approx(parts[0], rel=1e-9)
+
+
+def test_a_metallic_flip_on_a_dark_base_is_cheap_in_brdf_space_and_a_roughness_step_is_not():
+    texels = np.arange(16)
+    # base 0.04 is a dielectric's own R0: metallic 0 -> 1 only removes a diffuse lobe of 0.04 / pi
+    dielectric, metal = _textures(0.04, 0.5, 0.0), _textures(0.04, 0.5, 1.0)
+    shiny, less_shiny = _textures(0.5, 0.05, 0.0), _textures(0.5, 0.15, 0.0)
+    flip = parameter_mse(dielectric, metal, texels)["average"], brdf_log_rmse(dielectric, metal, texels)
+    step = parameter_mse(shiny, less_shiny, texels)["average"], brdf_log_rmse(shiny, less_shiny, texels)
+    # measured: flip (0.333, 0.0083), step (0.0033, 1.11): parameter MSE and BRDF error disagree 100x each way
+    assert flip[0] > 50 * step[0]
+    assert step[1] > 50 * flip[1]
+    assert flip[1] < 0.02
+
+
+def test_brdf_error_refuses_bad_inputs():
+    a = _textures(0.5, 0.5, 0.5)
+    with pytest.raises(ValueError, match="no texels"):
+        brdf_log_rmse(a, a, np.array([], int))
+    with pytest.raises(ValueError, match="texel 16 outside the 16 texels"):
+        brdf_log_rmse(a, a, np.array([0, 16]))
+    with pytest.raises(ValueError, match=r"metallic is \(2, 2\), ground truth \(4, 4\)"):
+        brdf_log_rmse(a, a | {"metallic": np.zeros((2, 2))}, np.arange(4))
+
+
+def _checker_base(size: int = 16):
+    """Grey 0.5 truth, an estimate 0.3 times as bright with a +-10% checkerboard, and a
+    scored block (balanced signs) with garbage outside it."""
+    y, x = np.mgrid[0:size, 0:size]
+    sign = np.where((x + y) % 2 == 0, 1.0, -1.0)[..., None]
+    truth = np.full((size, size, 3), 0.5)
+    estimate = 0.3 * truth * (1 + 0.1 * sign)
+    inside = (y >= 2) & (y < 14) & (x >= 2) & (x < 14)
+    truth[~inside], estimate[~inside] = 0.0, 1.0
+    return truth, estimate, np.flatnonzero(inside)
+
+
+def test_scale_invariant_base_colour_psnr_matches_the_analytic_value():
+    truth, estimate, texels = _checker_base()
+    # least-squares scale over the block: 1 / (0.3 (1 + 0.01)); then sRGB, peak 1
+    scaled = 0.5 * (1 + 0.1 * np.array([1.0, -1.0])) / 1.01
+    mse = np.mean((to_srgb(scaled) - to_srgb(0.5)) ** 2)
+    scores = base_color_si_scores(truth, estimate, texels)
+    assert scores["psnr"] == pytest.approx(-10 * np.log10(mse), rel=1e-12)
+    assert 0 < scores["ssim"] < 1
+
+
+def test_scale_invariant_base_colour_ignores_a_per_channel_scale_and_unscored_texels():
+    rng = np.random.default_rng(13)
+    truth = rng.uniform(0.1, 0.9, (16, 16, 3))
+    texels = np.arange(40, 200)
+    scaled = truth * np.array([0.5, 0.8, 0.6])
+    assert np.mean((scaled - truth).reshape(-1, 3)[texels] ** 2) > 0.01  # what parameter MSE would see
+    scores = base_color_si_scores(truth, scaled, texels)
+    assert scores["psnr"] > 100 and scores["ssim"] == pytest.approx(1.0, abs=1e-9)
+    noisy = scaled + 0.05 * rng.normal(size=scaled.shape)
+    reference = base_color_si_scores(truth, noisy, texels)
+    noisy.reshape(-1, 3)[:40] = rng.random((40, 3))  # outside the scored texels
+    assert base_color_si_scores(truth, noisy, texels) == reference

@@ -208,6 +208,13 @@ def test_metrics_csv_has_every_row(repo, run):
         rows = table[table.metric == metric]
         assert sorted(rows.method) == sorted(methods) and set(rows.object) == {"sphere"}
         assert rows.value.between(0.0, 1.0).all() and (rows.relight_env == "").all()
+    # BRDF-space error and scale-invariant base colour: every method, synthetic captures only
+    for metric in ("brdf_log_rmse", "base_color_si_psnr", "base_color_si_ssim"):
+        rows = table[table.metric == metric]
+        assert sorted(rows.method) == sorted(methods) and set(rows.object) == {"sphere"}
+        assert not rows.value.isna().any() and (rows.relight_env == "").all()
+    assert (table[table.metric == "brdf_log_rmse"].value > 0).all()
+    assert table[table.metric == "base_color_si_ssim"].value.between(-1.0, 1.0).all()
     # relighting: every method under every held-out environment, never the capture's own
     for metric in ("psnr_h", "psnr_l", "ssim", "mse"):
         rows = table[table.metric == metric]

@@ -85,15 +85,27 @@ def test_parameter_table_puts_means_and_paper_values_in_the_right_cells():
     df = tidy(mse_rows("freq", 0.10, "studio", "sphere") + mse_rows("freq", 0.20, "studio", "torus", (0.03, 0.04, 0.05))
               + mse_rows("freq", 0.30, "sunny") + mse_rows("spectrum", 0.5, "studio")
               + [("sphere", "studio", "freq", "time_total_s", 3.0), ("sphere", "sunny", "freq", "time_total_s", 5.0),
-                 ("sphere", "studio", "freq", "pearson_entropy_error", 0.25)])
+                 ("sphere", "studio", "freq", "pearson_entropy_error", 0.25),
+                 ("sphere", "studio", "freq", "brdf_log_rmse", 0.4), ("torus", "studio", "freq", "brdf_log_rmse", 0.5),
+                 ("sphere", "sunny", "freq", "brdf_log_rmse", 0.9), ("sphere", "studio", "freq", "base_color_si_psnr", 20.0),
+                 ("sphere", "sunny", "freq", "base_color_si_psnr", 31.0), ("sphere", "studio", "freq", "base_color_si_ssim", 0.8)])
     table = parameter_table(df, PAPER, ENV_KINDS)
     studio, sunny = "studio [paper: Photo Studio]", "sunny [paper: Rural Road]"
-    assert list(table.columns) == ["Method", "source", studio, sunny, "Avg.", "Time"]
+    assert list(table.columns) == ["Method", "source", studio, sunny, "Avg.", "BRDF log-RMSE", "Base SI-PSNR",
+                                   "Base SI-SSIM", "Time"]
     # mean over the two objects, with the parts in brackets
     assert cell(table, studio, Method="Ours (freq)", source="here") == "0.150 (0.020, 0.030, 0.040)"
     assert cell(table, sunny, Method="Ours (freq)", source="here") == "0.300 (0.010, 0.020, 0.030)"
     assert cell(table, "Avg.", Method="Ours (freq)", source="here").startswith("0.200 ")
     assert cell(table, "Time", Method="Ours (freq)", source="here") == "4 s"
+    # the BRDF-space and scale-invariant columns: means over every capture, ours only
+    assert cell(table, "BRDF log-RMSE", Method="Ours (freq)", source="here") == "0.600"
+    assert cell(table, "Base SI-PSNR", Method="Ours (freq)", source="here") == "25.50"
+    assert cell(table, "Base SI-SSIM", Method="Ours (freq)", source="here") == "0.800"
+    assert cell(table, "BRDF log-RMSE", Method="Ours (freq)", source="paper") == tables.MISSING
+    assert cell(table, "BRDF log-RMSE", Method="Ours-Spectrum Only (spectrum)", source="here") == tables.MISSING
+    assert cell(table, "Base SI-PSNR", Method="Mitsuba (mitsuba)", source="here") == tables.NOT_RUN
+    assert cell(table, "Base SI-SSIM", Method="Error-entropy correlation (freq)", source="here") == tables.MISSING
     # the paper's values for the environment of the same kind
     assert cell(table, studio, Method="Ours (freq)", source="paper") == "0.07 (0.02, 0.09, 0.10)"
     assert cell(table, sunny, Method="Ours (freq)", source="paper") == "0.05 (0.01, 0.05, 0.08)"

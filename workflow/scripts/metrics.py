@@ -18,6 +18,7 @@ from freqbrdf.cameras import cameras_from_json
 from freqbrdf.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
+from freqbrdf.metrics import base_color_si_scores, brdf_log_rmse
 from freqbrdf.metrics import parameter_error_map, parameter_mse, relight_scores, time_to_reach
 
 COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
@@ -38,7 +39,8 @@ def correlation(x, y):
 
 
 def parameter_rows(smk):
-    """mse_* of every method on every synthetic capture; pearson_entropy_error of the entropy-scored methods."""
+    """mse_*, brdf_log_rmse and base_color_si_{psnr,ssim} of every method on every synthetic capture;
+    pearson_entropy_error of the entropy-scored methods."""
     p = smk.params
     truth_files = keyed([(o,) for o in p.objects], smk.input.truth, per=len(TEXTURES))
     truth = cache(lambda o: read_svbrdf(dict(zip(TEXTURES, truth_files[(o,)]))))
@@ -50,6 +52,9 @@ def parameter_rows(smk):
         estimate, texels = read_svbrdf(directory), scored((obj, env, poses))
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")
         rows += [key | dict(metric=f"mse_{k}", value=v) for k, v in parameter_mse(truth(obj), estimate, texels).items()]
+        rows.append(key | dict(metric="brdf_log_rmse", value=brdf_log_rmse(truth(obj), estimate, texels)))
+        scaled = base_color_si_scores(truth(obj).base_color, estimate.base_color, texels)
+        rows += [key | dict(metric=f"base_color_si_{k}", value=v) for k, v in scaled.items()]
         if method in p.entropy_methods:
             entropy = read_entropy(entropies[(obj, env, poses)]).atlas.ravel()
             error = parameter_error_map(truth(obj), estimate).ravel()
