@@ -19,8 +19,12 @@ rule render_capture:
         "../envs/freqbrdf.yaml"
     threads: 2
     resources:
-        mem_mb=4000,
+        mem_mb=memory(400, "pixels"),
+        runtime=minutes(2, "samples"),
+        gpu=MITSUBA_GPUS,
+        slurm_extra=MITSUBA_SLURM,
     params:
+        variant=config["mitsuba"]["variant"],
         # Only the settings that change the images, so editing e.g. test_views
         # does not rerun the training renders.
         render={key: config["render"][key] for key in RENDER_KEYS},

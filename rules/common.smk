@@ -1,9 +1,10 @@
 # Shared definitions: names from config, wildcard constraints (only here), and
 # the library modules each rule depends on.
+import math
 from pathlib import Path
 
 from freqbrdf.brdf import TEXTURES
-from freqbrdf.config import derived_seed
+from freqbrdf.config import derived_seed, size_factor
 from freqbrdf.dependencies import script_modules
 from freqbrdf.methods import FREQUENCY_RULES, METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
 
@@ -49,6 +50,24 @@ wildcard_constraints:
     poses="gt|colmap",
     method=wildcard_pattern(list(METHOD_REGISTRY)),
 
+
+# Scheduler resources (README "Running on a cluster"): each rule's peak memory (MB) and
+# wall time (minutes) of its largest job on the shipped default config, measured from
+# the benchmark files of a default run (python bench/resources.py) with headroom, and
+# scaled to this configuration by what the job's work grows with.
+def memory(mb, kind="fixed"):
+    """``mb`` scaled by `freqbrdf.config.size_factor`, at least 500."""
+    return max(500, math.ceil(mb * size_factor(config, kind)))
+
+
+def minutes(amount, kind="fixed"):
+    """``amount`` minutes scaled by `freqbrdf.config.size_factor`, at least 1."""
+    return max(1, math.ceil(amount * size_factor(config, kind)))
+
+
+# Rules that run Mitsuba ask for a GPU when they will use one (mitsuba.variant: cuda_ad_rgb).
+MITSUBA_GPUS = int(config["mitsuba"]["variant"] == "cuda_ad_rgb")
+MITSUBA_SLURM = "--gres=gpu:1" if MITSUBA_GPUS else ""
 
 LIBRARY = REPO / "workflow" / "freqbrdf"
 SCRIPTS = REPO / "workflow" / "scripts"
@@ -211,7 +230,7 @@ def mitsuba_evaluation(wildcards):
 def mitsuba_settings(wildcards):
     """Optimiser settings of one run: config `mitsuba`, with `mitsuba.finetune`
     overriding epochs and spp when fine-tuning; a seed per capture and method."""
-    settings = {key: value for key, value in config["mitsuba"].items() if key != "finetune"}
+    settings = {key: value for key, value in config["mitsuba"].items() if key not in ("finetune", "variant")}
     if METHOD_REGISTRY[wildcards.method].start is not None:
         settings.update(config["mitsuba"]["finetune"])
     settings["seed"] = derived_seed(

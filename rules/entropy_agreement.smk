@@ -30,8 +30,12 @@ rule entropy_agreement:
         "../envs/freqbrdf.yaml"
     threads: 2
     resources:
-        mem_mb=2000,
+        mem_mb=memory(800),
+        runtime=minutes(2, "agreement"),
+        gpu=MITSUBA_GPUS,
+        slurm_extra=MITSUBA_SLURM,
     params:
+        variant=config["mitsuba"]["variant"],
         settings={k: v for k, v in config["entropy_agreement"].items() if k != "captures"},
         spectrum=config["spectrum"],
         lmax=config["optimise"]["lmax"],

@@ -13,8 +13,12 @@ rule build_env:
         "../envs/freqbrdf.yaml"
     threads: 2
     resources:
-        mem_mb=2000,
+        mem_mb=memory(500),
+        runtime=minutes(1),
+        gpu=MITSUBA_GPUS,
+        slurm_extra=MITSUBA_SLURM,
     params:
+        variant=config["mitsuba"]["variant"],
         settings=lambda wildcards: config["envs"][wildcards.env],
         height=config["envmaps"]["height"],
         mean_radiance=config["envmaps"]["mean_radiance"],
@@ -34,6 +38,9 @@ rule env_spectrum:
         "results/logs/env_spectrum/{env}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(1),
     params:
         lmax=config["envmaps"]["spectrum_lmax"],
     script:
@@ -51,6 +58,9 @@ rule env_spectra:
         "results/logs/env_spectra.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(1),
     params:
         envs=ENVS,
     script:

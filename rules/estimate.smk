@@ -20,7 +20,8 @@ rule optimise_svbrdf:
         "../envs/freqbrdf.yaml"
     threads: 2
     resources:
-        mem_mb=4000,
+        mem_mb=memory(1300, "texels"),
+        runtime=minutes(6, "texels"),
     params:
         optimise=config["optimise"],
     script:

@@ -32,6 +32,9 @@ rule metrics:
     conda:
         "../envs/freqbrdf.yaml"
     threads: 1
+    resources:
+        mem_mb=memory(500, "texels"),
+        runtime=minutes(2, "texels"),
     params:
         metrics={key: config["evaluate"][key] for key in METRIC_KEYS},
         synthetic=METRIC_ESTIMATES,

@@ -16,6 +16,9 @@ rule export_capture:
         "results/logs/export_capture/{object}_{env}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500, "pixels"),
+        runtime=minutes(1, "pixels"),
     script:
         "../workflow/scripts/export_capture.py"
 
@@ -36,6 +39,9 @@ rule import_capture:
         "results/logs/import_capture/{object}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500, "pixels"),
+        runtime=minutes(1, "pixels"),
     params:
         # Snakemake sees only the source directory's timestamp, which a file
         # rewritten inside it leaves alone; a changed checksum reruns the import
@@ -66,7 +72,13 @@ rule env_orientation:
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(1),
+        gpu=MITSUBA_GPUS,
+        slurm_extra=MITSUBA_SLURM,
     params:
+        variant=config["mitsuba"]["variant"],
         align=lambda wildcards: REAL_CAPTURES[wildcards.object]["align_env"],
         source=lambda wildcards: REAL_CAPTURES[wildcards.object]["dir"],
         settings=config["observations"],
@@ -89,6 +101,9 @@ rule import_textures:
         "results/logs/import_textures/{object}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(1),
     params:
         checksum=lambda wildcards: source_checksum(REAL_CAPTURES[wildcards.object]["textures"]),
         resolution=config["textures"]["resolution"],
@@ -111,6 +126,9 @@ rule score_real_capture:
         "results/logs/score_real_capture/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500, "texels"),
+        runtime=minutes(1, "texels"),
     params:
         methods=METHODS,
         entropy_methods=[m for m in METHODS if METHOD_REGISTRY[m].entropy_scored],
@@ -139,8 +157,12 @@ rule relight_real:
         "../envs/freqbrdf.yaml"
     threads: 2
     resources:
-        mem_mb=4000,
+        mem_mb=memory(500, "pixels"),
+        runtime=minutes(2, "samples"),
+        gpu=MITSUBA_GPUS,
+        slurm_extra=MITSUBA_SLURM,
     params:
+        variant=config["mitsuba"]["variant"],
         spp=config["render"]["spp"],
         max_depth=config["render"]["max_depth"],
         seed=lambda wildcards: derived_seed(config["seed"], "relight_real", wildcards.object),
@@ -162,6 +184,9 @@ rule score_real_relight:
         "results/logs/score_real_relight/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500, "pixels"),
+        runtime=minutes(1, "pixels"),
     params:
         methods=METHODS,
         metrics={key: config["evaluate"][key] for key in ("mask_min_coverage", "hdr_clip", "hdr_normalise")},

@@ -21,6 +21,9 @@ rule export_gltf:
         "results/benchmarks/export_gltf/{object}_{env}_{poses}_{method}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500, "texels"),
+        runtime=minutes(1, "texels"),
     params:
         name=lambda wildcards: wildcards.method,
     script:
@@ -40,6 +43,9 @@ rule export_truth_gltf:
         "results/benchmarks/export_truth_gltf/{object}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500, "texels"),
+        runtime=minutes(1, "texels"),
     params:
         name=TRUTH_GLTF,
     script:
@@ -59,6 +65,9 @@ rule export_env:
         "results/benchmarks/export_env/{env}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(1),
     script:
         "../workflow/scripts/export_env.py"
 
@@ -84,6 +93,9 @@ rule viewer:
         "results/benchmarks/viewer/{object}_{env}_{poses}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500, "texels"),
+        runtime=minutes(1, "texels"),
     params:
         panels=viewer_panels,
         envs=ENVS,

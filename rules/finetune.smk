@@ -26,8 +26,12 @@ rule mitsuba_svbrdf:
         "../envs/freqbrdf.yaml"
     threads: 2
     resources:
-        mem_mb=4000,
+        mem_mb=memory(500, "pixels"),
+        runtime=minutes(6, "inverse"),
+        gpu=MITSUBA_GPUS,
+        slurm_extra=MITSUBA_SLURM,
     params:
+        variant=config["mitsuba"]["variant"],
         resolution=config["textures"]["resolution"],
         settings=mitsuba_settings,
     script:

@@ -14,7 +14,8 @@ rule fit_sh:
         "../envs/freqbrdf.yaml"
     threads: 2
     resources:
-        mem_mb=4000,
+        mem_mb=memory(800, "texels"),
+        runtime=minutes(1, "texels"),
     params:
         sh=config["sh"],
     script:
@@ -39,6 +40,9 @@ rule spectrum_search:
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
+    resources:
+        mem_mb=memory(700, "texels"),
+        runtime=minutes(1, "texels"),
     params:
         spectrum=config["spectrum"],
     script:

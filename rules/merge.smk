@@ -18,6 +18,9 @@ rule merge_svbrdf:
     conda:
         "../envs/freqbrdf.yaml"
     threads: 1
+    resources:
+        mem_mb=memory(500, "texels"),
+        runtime=minutes(1, "texels"),
     params:
         envs=merge_envs,
     script:

@@ -11,6 +11,9 @@ rule build_object:
         "results/benchmarks/build_object/{object}.tsv"
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(1),
     params:
         detail=config["meshes"]["detail"],
         textures=config["textures"],

@@ -17,8 +17,12 @@ rule extract_observations:
         "../envs/freqbrdf.yaml"
     threads: 2
     resources:
-        mem_mb=4000,
+        mem_mb=memory(900, "texels"),
+        runtime=minutes(1, "texels"),
+        gpu=MITSUBA_GPUS,
+        slurm_extra=MITSUBA_SLURM,
     params:
+        variant=config["mitsuba"]["variant"],
         resolution=config["textures"]["resolution"],
         settings=config["observations"],
     script:

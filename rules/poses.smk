@@ -16,7 +16,8 @@ rule colmap_poses:
         "../envs/freqbrdf.yaml"
     threads: 2
     resources:
-        mem_mb=4000,
+        mem_mb=memory(500, "pixels"),
+        runtime=minutes(1, "pixels"),
     params:
         colmap=config["poses"]["colmap"],
         gates={
@@ -39,6 +40,9 @@ rule pose_errors:
         "results/logs/pose_errors.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(1),
     params:
         captures=SYNTHETIC_CAPTURES,
     script:

@@ -26,8 +26,12 @@ rule relight:
         "../envs/freqbrdf.yaml"
     threads: 2
     resources:
-        mem_mb=4000,
+        mem_mb=memory(500, "pixels"),
+        runtime=minutes(2, "samples"),
+        gpu=MITSUBA_GPUS,
+        slurm_extra=MITSUBA_SLURM,
     params:
+        variant=config["mitsuba"]["variant"],
         render={key: config["render"][key] for key in RELIGHT_KEYS},
         relight_envs=lambda w: relight_envs(w.env, w.method),
         # The reference renders' seeds: same sample sequence, so a perfect estimate

@@ -4,7 +4,6 @@
 
 from freqbrdf.tables import SUMMARY_KEYS as TABLES  # stems of the table files: the paper's Tables 1-6 and the claims
 
-
 # Methods with a logged MSE curve (differentiable rendering) and those shown as points.
 CONVERGENCE_CURVES = [m for m in METHODS if METHOD_REGISTRY[m].rule == "mitsuba_svbrdf"]
 CONVERGENCE_POINTS = [m for m in METHODS if METHOD_REGISTRY[m].rule in FREQUENCY_RULES]
@@ -27,7 +26,7 @@ rule tables:
             "results/tables/tables.html",
             category="Tables",
             caption="../report/tables.rst",
-            labels={"table": "Tables 1, 2, 4, 5, 6"},
+            labels={"table": "Tables 1 to 6"},
         ),
         claims_html=report(
             "results/tables/claims.html", category="Tables", caption="../report/claims.rst", labels={"table": "claims"}
@@ -36,6 +35,9 @@ rule tables:
         "results/logs/tables.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(1),
     params:
         poses=POSES,
         # Which of the paper's environments each of ours stands beside (Table 2).
@@ -66,6 +68,9 @@ rule capture_figure:
         "results/logs/capture_figure/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500, "texels"),
+        runtime=minutes(1, "texels"),
     params:
         methods=METHODS,
     script:
@@ -92,6 +97,9 @@ rule relight_figure:
         "results/logs/relight_figure/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500, "pixels"),
+        runtime=minutes(1),
     params:
         relights=capture_relights,
         references=relight_figure_envs,
@@ -119,6 +127,9 @@ rule convergence_figure:
         "results/logs/convergence_figure/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(1),
     params:
         curves=CONVERGENCE_CURVES,
         starts=[METHOD_REGISTRY[m].start for m in CONVERGENCE_CURVES],
@@ -147,6 +158,9 @@ rule regulariser_figure:
         "results/logs/regulariser_figure/{object}_{env}_{poses}.log",
     conda:
         "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500, "texels"),
+        runtime=minutes(1, "texels"),
     params:
         sh=config["sh"],
         texels=1000,  # observed texels sampled (seeded)

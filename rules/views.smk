@@ -26,6 +26,9 @@ rule views_sweep:
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
+    resources:
+        mem_mb=memory(1500, "texels"),
+        runtime=minutes(12, "texels"),
     params:
         counts=config["evaluate"]["views_counts"],
         seed=lambda w: derived_seed(config["seed"], "views", w.object, w.env, w.poses),

@@ -8,7 +8,7 @@ import pytest
 import yaml
 from snakemake.utils import update_config
 
-from freqbrdf.config import ConfigError, check_config, derived_seed
+from freqbrdf.config import SIZE_KINDS, ConfigError, check_config, derived_seed, size_factor
 
 
 @pytest.fixture(scope="module")
@@ -104,3 +104,18 @@ def test_every_schema_key_is_documented_in_config_readme(repo, schema):
     assert len(leaves) > 40  # the walk reached the nested sections
     missing = [name for name in leaves if f"`{name}`" not in text]
     assert not missing, f"config/README.md does not document {missing}"
+
+
+def test_size_factor_is_one_on_the_default_and_grows_with_the_work(repo, default):
+    for kind in SIZE_KINDS:
+        assert size_factor(default, kind) == 1.0
+    paper = copy.deepcopy(default)
+    update_config(paper, yaml.safe_load((repo / "config" / "paper.yaml").read_text()))
+    pixels = (512 / 256) ** 2 * 100 / 24
+    assert size_factor(paper, "pixels") == pytest.approx(pixels)
+    assert size_factor(paper, "samples") == pytest.approx(pixels * 256 / 64)
+    assert size_factor(paper, "texels") == pytest.approx((512 / 256) ** 2 * 100 / 24)
+    assert size_factor(paper, "inverse") == pytest.approx(pixels * 32 / 8 * 10 / 6)
+    assert size_factor(paper, "agreement") == pytest.approx(100 / 24 * 1024 / 256 * 16 / 8)
+    with pytest.raises(ValueError, match="size kind"):
+        size_factor(default, "voxels")

@@ -37,3 +37,26 @@ def test_missing_package_says_how_to_install(monkeypatch):
     monkeypatch.setattr(mitsuba_setup, "LLVM_PACKAGE", "no-such-package-freqbrdf")
     with pytest.raises(LLVMNotFoundError, match="pip install"):
         find_llvm()
+
+
+@pytest.mark.parametrize("requested, devices, expected", [
+    ("llvm_ad_rgb", 1, "llvm_ad_rgb"),  # the CPU when asked for, GPU or not
+    ("auto", 0, "llvm_ad_rgb"),
+    ("auto", 2, "cuda_ad_rgb"),
+    ("cuda_ad_rgb", 1, "cuda_ad_rgb"),
+])
+def test_variant_follows_the_config_and_the_devices(requested, devices, expected):
+    assert mitsuba_setup.resolve_variant(requested, devices) == expected
+
+
+def test_a_gpu_variant_without_a_device_or_an_unknown_one_names_the_key():
+    with pytest.raises(ValueError, match="mitsuba.variant: cuda_ad_rgb needs a CUDA device"):
+        mitsuba_setup.resolve_variant("cuda_ad_rgb", 0)
+    with pytest.raises(ValueError, match="mitsuba.variant: 'scalar_rgb' is not one of"):
+        mitsuba_setup.resolve_variant("scalar_rgb")
+
+
+def test_auto_asks_the_driver():
+    # on a machine without libcuda this is the CPU; with a working GPU, the GPU
+    expected = "cuda_ad_rgb" if mitsuba_setup.cuda_devices() > 0 else "llvm_ad_rgb"
+    assert mitsuba_setup.resolve_variant("auto") == expected

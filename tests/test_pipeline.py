@@ -347,6 +347,18 @@ def test_gltf_files_environments_and_viewers_are_written_per_capture(repo, run):
         assert np.all(np.abs(hdr - exr_env) <= exr_env.max(axis=2, keepdims=True) / 256 + 1e-30)
 
 
+def test_every_job_stays_within_the_resources_its_rule_declares(repo, run):
+    """mem_mb and runtime of every rule (scaled to the tiny config) hold each job's measured peak."""
+    sys.path.insert(0, str(repo / "bench"))
+    from resources import by_rule, declared_resources, measured
+
+    output = snakemake(repo, run, "-n", "-F")
+    jobs = measured(run, declared_resources(output.stdout + output.stderr))
+    table = by_rule(jobs)
+    assert {"render_capture", "optimise_svbrdf", "mitsuba_svbrdf", "relight", "metrics"} <= set(table.rule)
+    assert not table.over.any(), table[table.over].to_string()
+
+
 def test_changing_a_metric_setting_reruns_only_metrics_and_report_rules(repo, run, tmp_path):
     changed = tmp_path / "metric.yaml"
     changed.write_text("evaluate:\n  hdr_clip: 2.0\n")

@@ -1,4 +1,4 @@
-"""Locate a usable LLVM and initialise Mitsuba's CPU variant.
+"""Choose Mitsuba's variant (CPU or GPU), locate a usable LLVM and initialise Mitsuba.
 
 Mitsuba's ``llvm_*`` variants JIT-compile kernels through ``libLLVM``. Dr.Jit
 needs LLVM >= 17; the LLVM 15 that Debian may ship crashes at the first kernel
@@ -9,12 +9,15 @@ compile, so the project never relies on the system library. The PyPI wheel
 
 from __future__ import annotations
 
+import ctypes
 import importlib.metadata
 import os
 import re
 from pathlib import Path
 from types import ModuleType
 
+VARIANTS = ("auto", "llvm_ad_rgb", "cuda_ad_rgb")
+"""Values of config ``mitsuba.variant``: ``auto`` takes the GPU where a CUDA device and driver work."""
 MIN_LLVM_MAJOR = 17
 LLVM_PACKAGE = "karellen-llvm-core"
 _HOW_TO_FIX = (
@@ -91,8 +94,8 @@ def setup_mitsuba(variant: str = "llvm_ad_rgb", threads: int | None = None) -> M
 
     Parameters
     ----------
-    variant : str
-        Mitsuba variant; the pipeline uses the CPU variant ``llvm_ad_rgb``.
+    variant : {"auto", "llvm_ad_rgb", "cuda_ad_rgb"}
+        Mitsuba variant (`resolve_variant`); the CPU variant ``llvm_ad_rgb`` by default.
     threads : int, optional
         Worker threads for Dr.Jit's thread pool (e.g. Snakemake's ``threads``).
 
@@ -101,6 +104,7 @@ def setup_mitsuba(variant: str = "llvm_ad_rgb", threads: int | None = None) -> M
     module
         The imported ``mitsuba`` module with the variant set.
     """
+    variant = resolve_variant(variant)
     if variant.startswith("llvm"):
         os.environ["DRJIT_LIBLLVM_PATH"] = str(find_llvm())
     import drjit as dr
@@ -110,3 +114,41 @@ def setup_mitsuba(variant: str = "llvm_ad_rgb", threads: int | None = None) -> M
     if threads is not None:
         dr.set_thread_count(int(threads))
     return mi
+
+
+def cuda_devices() -> int:
+    """Number of CUDA devices the driver reports; 0 without a working driver (``libcuda``)."""
+    try:
+        cuda = ctypes.CDLL("libcuda.so.1")
+    except OSError:
+        return 0
+    count = ctypes.c_int(0)
+    if cuda.cuInit(0) != 0 or cuda.cuDeviceGetCount(ctypes.byref(count)) != 0:
+        return 0
+    return int(count.value)
+
+
+def resolve_variant(requested: str, devices: int | None = None) -> str:
+    """The Mitsuba variant to run: ``requested``, or for ``auto`` the GPU one where a CUDA device works.
+
+    Parameters
+    ----------
+    requested : {"auto", "llvm_ad_rgb", "cuda_ad_rgb"}
+        Config ``mitsuba.variant``.
+    devices : int, optional
+        CUDA devices available (default: ask the driver, `cuda_devices`).
+
+    Raises
+    ------
+    ValueError
+        Naming the config key, for an unknown variant or ``cuda_ad_rgb`` without a CUDA device.
+    """
+    if requested not in VARIANTS:
+        raise ValueError(f"config key mitsuba.variant: {requested!r} is not one of {VARIANTS}")
+    if requested == "llvm_ad_rgb":
+        return requested
+    devices = cuda_devices() if devices is None else devices
+    if requested == "cuda_ad_rgb" and devices == 0:
+        raise ValueError("config key mitsuba.variant: cuda_ad_rgb needs a CUDA device and driver (libcuda), "
+                         "and none works on this machine; use auto or llvm_ad_rgb")
+    return "cuda_ad_rgb" if devices > 0 else "llvm_ad_rgb"

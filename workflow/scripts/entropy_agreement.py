@@ -20,7 +20,7 @@ from freqbrdf.spectrum import search_fit
 def main(smk, log):
     p = smk.params
     settings = p.settings
-    mi = setup_mitsuba(threads=smk.threads)
+    mi = setup_mitsuba(smk.params.variant, smk.threads)
     obs, fit = read_observations(smk.input.observations), read_sh_fit(smk.input.sh)
     envmap = read_exr(smk.input.envmap)
     index = sample_texels(obs.observed, settings["texels"], p.seed)

@@ -47,7 +47,7 @@ def mirror_pairs(mi, smk, settings):
 
 
 def main(smk, log):
-    mi = setup_mitsuba(threads=smk.threads)
+    mi = setup_mitsuba(smk.params.variant, smk.threads)
     settings = smk.params.settings
     given = read_exr(smk.input.envmap)
     radiance, normal, mirror, group, n_views = mirror_pairs(mi, smk, settings)

@@ -32,7 +32,7 @@ from freqbrdf.raycast import distance_maps, mesh_scene, occlusion_test
 
 
 def main(smk, log):
-    mi = setup_mitsuba(threads=smk.threads)
+    mi = setup_mitsuba(smk.params.variant, smk.threads)
     set_kernel_threads(smk.threads)
     settings = smk.params.settings
     with atomic_directory(smk.output[0]) as tmp:

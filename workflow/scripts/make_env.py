@@ -16,7 +16,7 @@ def main(smk, log):
         from freqbrdf.mitsuba_setup import setup_mitsuba
         from freqbrdf.render import sunsky
 
-        settings["sky"] = functools.partial(sunsky, setup_mitsuba(threads=smk.threads))
+        settings["sky"] = functools.partial(sunsky, setup_mitsuba(smk.params.variant, smk.threads))
     env = getattr(envmaps, kind)(smk.params.height, **settings)
     env = envmaps.normalise(env, smk.params.mean_radiance)
     log.info("%s (%s): %s, max radiance %.1f", smk.wildcards.env, kind, env.shape, env.max())

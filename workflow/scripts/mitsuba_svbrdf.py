@@ -41,7 +41,7 @@ def evaluation(smk):
 
 
 def main(smk, log):
-    mi = setup_mitsuba(threads=smk.threads)
+    mi = setup_mitsuba(smk.params.variant, smk.threads)
     poses = Path(smk.input.poses) / "cameras.json"
     cameras = cameras_from_json(read_json(poses), poses)
     images, coverage, nonfinite = read_views(smk.input.capture, cameras.names, cameras.width, cameras.height)

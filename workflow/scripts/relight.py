@@ -13,7 +13,7 @@ from freqbrdf.render import relit_views
 
 
 def main(smk, log):
-    mi = setup_mitsuba(threads=smk.threads)
+    mi = setup_mitsuba(smk.params.variant, smk.threads)
     render = smk.params.render
     textures = read_svbrdf(smk.input.estimate)
     envs = smk.params.relight_envs

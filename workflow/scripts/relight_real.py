@@ -13,7 +13,7 @@ from freqbrdf.render import relit_views
 
 
 def main(smk, log):
-    mi = setup_mitsuba(threads=smk.threads)
+    mi = setup_mitsuba(smk.params.variant, smk.threads)
     test = Path(smk.input.test)
     cameras = cameras_from_json(read_json(test / "cameras.json"), test / "cameras.json")
     fov = pinhole_fov_deg(cameras, test / "cameras.json")

@@ -15,7 +15,7 @@ from freqbrdf.render import capture_scene, mask_scene, principled_bsdf, render_v
 
 
 def main(smk, log):
-    mi = setup_mitsuba(threads=smk.threads)
+    mi = setup_mitsuba(smk.params.variant, smk.threads)
     p = smk.params
     size = p.render["resolution"]
     w2c = hemisphere_rig(p.views, p.render["camera_distance"], azimuth_deg=p.azimuth_deg)
