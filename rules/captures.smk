@@ -22,7 +22,6 @@ rule render_capture:
         mem_mb=memory(400, "pixels"),
         runtime=minutes(2, "samples"),
         gpu=MITSUBA_GPUS,
-        slurm_extra=MITSUBA_SLURM,
     params:
         variant=config["mitsuba"]["variant"],
         # Only the settings that change the images, so editing e.g. test_views

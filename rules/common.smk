@@ -65,9 +65,9 @@ def minutes(amount, kind="fixed"):
     return max(1, math.ceil(amount * size_factor(config, kind)))
 
 
-# Rules that run Mitsuba ask for a GPU when they will use one (mitsuba.variant: cuda_ad_rgb).
+# Rules that run Mitsuba ask for a GPU when they will use one (mitsuba.variant: cuda_ad_rgb);
+# the SLURM executor turns the gpu resource into --gpus.
 MITSUBA_GPUS = int(config["mitsuba"]["variant"] == "cuda_ad_rgb")
-MITSUBA_SLURM = "--gres=gpu:1" if MITSUBA_GPUS else ""
 
 LIBRARY = REPO / "workflow" / "freqbrdf"
 SCRIPTS = REPO / "workflow" / "scripts"

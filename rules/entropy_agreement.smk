@@ -33,7 +33,6 @@ rule entropy_agreement:
         mem_mb=memory(800),
         runtime=minutes(2, "agreement"),
         gpu=MITSUBA_GPUS,
-        slurm_extra=MITSUBA_SLURM,
     params:
         variant=config["mitsuba"]["variant"],
         settings={k: v for k, v in config["entropy_agreement"].items() if k != "captures"},

@@ -16,7 +16,6 @@ rule build_env:
         mem_mb=memory(500),
         runtime=minutes(1),
         gpu=MITSUBA_GPUS,
-        slurm_extra=MITSUBA_SLURM,
     params:
         variant=config["mitsuba"]["variant"],
         settings=lambda wildcards: config["envs"][wildcards.env],

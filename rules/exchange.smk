@@ -76,7 +76,6 @@ rule env_orientation:
         mem_mb=memory(500),
         runtime=minutes(1),
         gpu=MITSUBA_GPUS,
-        slurm_extra=MITSUBA_SLURM,
     params:
         variant=config["mitsuba"]["variant"],
         align=lambda wildcards: REAL_CAPTURES[wildcards.object]["align_env"],
@@ -160,7 +159,6 @@ rule relight_real:
         mem_mb=memory(500, "pixels"),
         runtime=minutes(2, "samples"),
         gpu=MITSUBA_GPUS,
-        slurm_extra=MITSUBA_SLURM,
     params:
         variant=config["mitsuba"]["variant"],
         spp=config["render"]["spp"],

@@ -29,7 +29,6 @@ rule mitsuba_svbrdf:
         mem_mb=memory(500, "pixels"),
         runtime=minutes(6, "inverse"),
         gpu=MITSUBA_GPUS,
-        slurm_extra=MITSUBA_SLURM,
     params:
         variant=config["mitsuba"]["variant"],
         resolution=config["textures"]["resolution"],

@@ -20,7 +20,6 @@ rule extract_observations:
         mem_mb=memory(900, "texels"),
         runtime=minutes(1, "texels"),
         gpu=MITSUBA_GPUS,
-        slurm_extra=MITSUBA_SLURM,
     params:
         variant=config["mitsuba"]["variant"],
         resolution=config["textures"]["resolution"],

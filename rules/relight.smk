@@ -29,7 +29,6 @@ rule relight:
         mem_mb=memory(500, "pixels"),
         runtime=minutes(2, "samples"),
         gpu=MITSUBA_GPUS,
-        slurm_extra=MITSUBA_SLURM,
     params:
         variant=config["mitsuba"]["variant"],
         render={key: config["render"][key] for key in RELIGHT_KEYS},
