@@ -20,7 +20,7 @@ from .observations import band_limit_parameter, band_limited_envmap, sample_equi
 from .shfit import mirror_directions
 from .validation import check_int
 
-__all__ = ["view_subsets", "view_subset"]
+__all__ = ["view_subsets", "view_subset", "mirror_light"]
 
 
 def view_subsets(n_views: int, counts: Sequence[int], seed: int) -> dict[int, np.ndarray]:
@@ -63,9 +63,28 @@ def view_subset(obs: Observations, views: np.ndarray, envmap: np.ndarray, band_l
     views = np.asarray(views, dtype=np.int64)
     a_prime = band_limit_parameter(len(views), band_limit)
     wo = np.asarray(obs.wo_local[:, views])
-    world = np.einsum("tji,tkj->tki", obs.frame, mirror_directions(wo))  # local -> world mirror directions
-    incoming = sample_equirect(band_limited_envmap(envmap, a_prime), world).astype(np.float32)
+    incoming = mirror_light(obs.frame, wo, band_limited_envmap(envmap, a_prime)).astype(np.float32)
     names = [obs.meta["views"][v] for v in views]
     meta = {**obs.meta, "views": names, "band_limit": {"rule": band_limit, "a_prime": a_prime}}
     return Observations(obs.texels, np.asarray(obs.radiance[:, views]), np.asarray(obs.weight[:, views]), wo,
                         incoming, meta)
+
+
+def mirror_light(frame: np.ndarray, wo_local: np.ndarray, incoming_map: np.ndarray) -> np.ndarray:
+    """The light along each pair's world mirror direction (paper section 4.2: L sampled where B is).
+
+    Parameters
+    ----------
+    frame : ndarray, shape (T, 3, 3)
+        Rows tangent, bitangent, normal (world -> local).
+    wo_local : ndarray, shape (T, K, 3)
+        Unit directions to the cameras in the texel frames.
+    incoming_map : ndarray, shape (H, W, 3)
+        The band-limited environment map (`band_limited_envmap`).
+
+    Returns
+    -------
+    ndarray, shape (T, K, 3)
+    """
+    world = np.einsum("tji,tkj->tki", frame, mirror_directions(wo_local))  # local -> world mirror directions
+    return sample_equirect(incoming_map, world)
