@@ -70,6 +70,8 @@ def test_kernel_matches_its_reference_and_a_delta_posterior_gives_that_hypothesi
     posterior = rng.dirichlet(np.full(n_grid, 0.3), size=40)
     posterior[:n_grid] = np.eye(n_grid)  # delta posteriors at every hypothesis
     posterior[-1] = 1.0 / n_grid
+    sparse = posterior[n_grid : n_grid + 10] * (rng.random((10, n_grid)) < 0.3)  # most hypotheses ruled out
+    posterior[n_grid : n_grid + 10] = sparse / sparse.sum(axis=1, keepdims=True)
     rows = np.arange(40)
     compiled = expected_entropy(s**2, posterior, rows, filters, 0.01)
     np.testing.assert_allclose(compiled, expected_entropy(s**2, posterior, rows, filters, 0.01, compiled=False),
@@ -114,6 +116,11 @@ def test_greedy_from_nothing_starts_with_the_widest_view_and_never_repeats():
     assert rankings[0].current == 1.0 and np.all(rankings[0].decrease == 0.0)  # one sample: a constant
     assert picks[0] == int(np.argmax(views.weight.sum(axis=0)))
     assert sorted(picks) == list(range(8)) and rankings[-1].current < 1.0
+    # each step re-evaluates only the texels the last pick sees: the same as ranking afresh
+    for i in (1, 3, 8):
+        again = rank_views(model(), views, picks[:i], chunk=5)
+        assert again.current == pytest.approx(rankings[i].current, abs=1e-12)
+        np.testing.assert_allclose(again.expected, rankings[i].expected, atol=1e-12)
 
 
 def test_known_views_inform_the_posterior():

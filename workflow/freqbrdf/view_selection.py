@@ -39,14 +39,20 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+import pandas as pd
 
-from .sh import n_coeffs, real_sh
+from .artefacts import Observations
+from .cameras import Cameras
+from .observations import view_geometry
+from .sh import n_coeffs, real_sh, sh_degrees
 from .shfit import mirror_directions, regulariser_diagonal
 from .spectrum import combine_entropy, default_grid, model_filters, residual_width, spectrum_search
 from .validation import check_choice, check_int, check_positive, check_shape
+from .views import mirror_light
 
 __all__ = ["CandidateViews", "SelectionModel", "Ranking", "candidate_views", "sample_texels", "expected_entropy",
-           "rank_views", "greedy_selection", "farthest_views", "set_threads"]
+           "rank_views", "greedy_selection", "farthest_views", "set_threads", "capture_views", "capture_and_candidates",
+           "ranking_table"]
 
 _P_MIN = 1e-9  # hypotheses less likely than this are skipped: error <= n_grid * 1e-9
 _X_MIN = -40.0  # exp(-40) = 4e-18: such grid points add nothing to a row's sums
@@ -223,35 +229,72 @@ class SelectionModel:
 # --------------------------------------------------------------------------
 # expected entropy of a grid posterior given the light's spectrum
 # --------------------------------------------------------------------------
-@numba.njit(parallel=True, cache=True)
+# exp(x) = 2^k exp(q), |q| <= ln 2 / 2: degree-9 Taylor (relative error 7e-12) and 2^k from
+# the exponent bits, arithmetic LLVM vectorises (libm's exp is called one value at a time).
+_LOG2E = 1.4426950408889634
+_LN2_HI = 0.693145751953125  # ln 2 split so that k * _LN2_HI is exact
+_LN2_LO = 1.42860682030941723212e-6
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True)  # sums reassociated: vectorised
 def _expected_entropy(s2, posterior, rows, filters, scale, out):  # pragma: no cover - compiled
     n_rows, n_l = s2.shape
     n_grid = filters.shape[0]
     log_n = np.log(n_grid)
     for blk in numba.prange((n_rows + _ROWS - 1) // _ROWS):
-        z = np.empty(n_grid)
-        ex = np.empty(n_grid)
+        z = np.empty(n_grid)  # sum_g exp(x_ig) per hypothesis i
+        ex = np.empty(n_grid)  # sum_g exp(x_ig) x_ig
+        x = np.empty(n_grid)
+        e = np.empty(n_grid)
+        bits = np.empty(n_grid, np.int64)
+        two = bits.view(np.float64)
+        likely = np.empty(n_grid, np.int64)
         for r in range(blk * _ROWS, min(n_rows, (blk + 1) * _ROWS)):
             p = posterior[rows[r]]
             z[:] = 1.0  # D_ii = 0: exp(0)
             ex[:] = 0.0
             # D is symmetric: each pair's exp serves both rows
+            n_likely = 0
             for i in range(n_grid):
+                if p[i] >= _P_MIN:
+                    likely[n_likely] = i
+                    n_likely += 1
+            for i in range(n_grid - 1):
+                if p[i] < _P_MIN:
+                    # only the pairs with a likely hypothesis j are needed (for row j)
+                    for a in range(n_likely):
+                        j = likely[a]
+                        if j > i:
+                            d = 0.0
+                            for l in range(n_l):
+                                t = filters[i, l] - filters[j, l]
+                                d += t * t * s2[r, l]
+                            xj = max(-d * scale, _X_MIN)
+                            v = np.exp(xj)
+                            z[j] += v
+                            ex[j] += v * xj
+                    continue
                 for j in range(i + 1, n_grid):
-                    if p[i] < _P_MIN and p[j] < _P_MIN:
-                        continue
                     d = 0.0
                     for l in range(n_l):
                         t = filters[i, l] - filters[j, l]
                         d += t * t * s2[r, l]
-                    x = -d * scale
-                    if x < _X_MIN:
-                        continue
-                    e = np.exp(x)
-                    z[i] += e
-                    z[j] += e
-                    ex[i] += e * x
-                    ex[j] += e * x
+                    x[j] = max(-d * scale, _X_MIN)  # below, exp adds < 4e-18: clamped, not skipped
+                for j in range(i + 1, n_grid):
+                    k = np.floor(x[j] * _LOG2E + 0.5)
+                    q = x[j] - k * _LN2_HI - k * _LN2_LO
+                    e[j] = 1.0 + q * (1.0 + q * (1 / 2 + q * (1 / 6 + q * (1 / 24 + q * (1 / 120 + q * (
+                        1 / 720 + q * (1 / 5040 + q * (1 / 40320 + q / 362880))))))))
+                    bits[j] = (np.int64(k) + 1023) << 52
+                zi, exi = 0.0, 0.0
+                for j in range(i + 1, n_grid):
+                    v = e[j] * two[j]
+                    zi += v
+                    exi += v * x[j]
+                    z[j] += v
+                    ex[j] += v * x[j]
+                z[i] += zi
+                ex[i] += exi
             h = 0.0
             for i in range(n_grid):
                 if p[i] >= _P_MIN:
@@ -286,8 +329,8 @@ def expected_entropy(s2: np.ndarray, posterior: np.ndarray, rows: np.ndarray, fi
     sigma : float
         Noise scale of the normalised objective.
     compiled : bool
-        The numba kernel (default; skips hypotheses with p < 1e-9 and grid points with
-        exp(-D / 2 sigma^2) < 4e-18) or its NumPy reference.
+        The numba kernel (default; skips hypotheses with p < 1e-9, and its exp is a
+        polynomial of relative error 7e-12) or its NumPy reference.
 
     Returns
     -------
@@ -320,13 +363,14 @@ def _fit(y: np.ndarray, w: np.ndarray, f: np.ndarray, reg: np.ndarray, lam: floa
     texels have a sample. Where a texel has none and W_00 = 0 the system is singular; its
     inverse is then that of ``lam W + e_0 e_0^T``, a stand-in its callers do not use.
     """
-    a = np.einsum("tkn,tk,tkm->tnm", y, w, y)
+    yw = (y * w[..., None]).transpose(0, 2, 1)  # (t, n, k)
+    a = yw @ y
     a += lam * np.diag(reg)
     seen = (w > 0).any(axis=1)
     if reg[0] == 0.0:
         a[~seen, 0, 0] += 1.0
     inverse = np.linalg.inv(a)
-    coeffs = inverse @ np.einsum("tkn,tk,tkc->tnc", y, w, f)
+    coeffs = inverse @ (yw @ f)
     return inverse, coeffs, seen
 
 
@@ -347,7 +391,11 @@ def _spectra_with(inverse: np.ndarray, coeffs: np.ndarray, y: np.ndarray, w: np.
     q = np.einsum("tkn,tkn->tk", u, y)
     beta = (w / (1.0 + w * q))[..., None] * (f - np.einsum("tkn,tnc->tkc", y, coeffs))  # (t, N, C)
     s = _degree_sums(coeffs[:, None, :, :] ** 2, lmax)  # (t, 1, L+1, C)
-    cu = _degree_sums(u[..., None] * coeffs[:, None, :, :], lmax)  # (t, N, L+1, C)
+    # sum_m c u per degree as one product with the coefficients spread over a (n, L+1, C) block diagonal
+    t, n, n_ch = coeffs.shape
+    block = np.zeros((t, n, lmax + 1, n_ch))
+    block[:, np.arange(n), sh_degrees(lmax)] = coeffs
+    cu = (u @ block.reshape(t, n, -1)).reshape(t, -1, lmax + 1, n_ch)  # (t, N, L+1, C)
     uu = _degree_sums(u * u, lmax)[..., None]  # (t, N, L+1, 1)
     return s + 2.0 * beta[:, :, None, :] * cu + beta[:, :, None, :] ** 2 * uu
 
@@ -361,26 +409,18 @@ def _normalised(spectra: np.ndarray, min_relative_power: float) -> tuple[np.ndar
     return np.moveaxis(s * s, -2, -1), ok
 
 
-def _posterior(model: SelectionModel, y: np.ndarray, w: np.ndarray, views: CandidateViews, texels: slice,
-               known: np.ndarray) -> np.ndarray:
-    """Grid posterior (t, C, G) of the spectrum search on the known chosen views; uniform where
-    fewer than ``posterior_min_views`` of them see the texel."""
-    t, n_grid = y.shape[0], model.ks.size * model.alpha.size
-    uniform = np.full((t, 3, n_grid), 1.0 / n_grid)
-    if len(known) == 0:
-        return uniform
-    wk = w[:, known]
-    f = np.concatenate([views.radiance[texels][:, known], views.incoming[texels][:, known]], axis=2)
-    _, coeffs, seen = _fit(y[:, known], wk, f, model.regulariser, model.lam)
-    spectra = _degree_sums(coeffs[:, None] ** 2, model.lmax)[:, 0]  # (t, L+1, 6)
-    search = spectrum_search(spectra[..., :3], spectra[..., 3:], model.ks, model.alpha, sigma=model.sigma,
+def _posterior(model: SelectionModel, spectra: np.ndarray, seen: np.ndarray, known_views: np.ndarray) -> np.ndarray:
+    """Grid posterior (t, C, G) of the spectrum search (Eq. 23) on the known chosen views' spectra
+    of B and L (t, L+1, 6); uniform where fewer than ``posterior_min_views`` of them (``known_views``
+    (t,)) see the texel."""
+    t, n_grid = len(spectra), model.ks.size * model.alpha.size
+    search = spectrum_search(spectra[..., 3:], spectra[..., :3], model.ks, model.alpha, sigma=model.sigma,
                              observed=seen, return_objective=True, min_relative_power=model.min_relative_power)
     d = search.objective.reshape(t, n_grid, 3).transpose(0, 2, 1)  # (t, C, G), 0 where not identifiable
-    x = -(d - d.min(axis=2, keepdims=True)) / (2.0 * model.sigma**2)
-    p = np.exp(x)
+    p = np.exp(-(d - d.min(axis=2, keepdims=True)) / (2.0 * model.sigma**2))
     p /= p.sum(axis=2, keepdims=True)
-    enough = (wk > 0).sum(axis=1) >= max(model.posterior_min_views, 1)
-    return np.where(enough[:, None, None], p, uniform)
+    enough = known_views >= max(model.posterior_min_views, 1)
+    return np.where(enough[:, None, None], p, 1.0 / n_grid)
 
 
 @dataclass(frozen=True)
@@ -407,6 +447,46 @@ class Ranking:
         return self.current - self.expected
 
 
+def _entropies(model: SelectionModel, views: CandidateViews, chosen: np.ndarray, texels: np.ndarray,
+               compiled: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Expected entropy (t,) of ``texels`` with the chosen views and (t, N) with each view added
+    (the current one for views chosen or not seeing the texel)."""
+    known = chosen[views.known[chosen]]
+    others = np.setdiff1d(np.arange(len(views)), chosen)
+    y = real_sh(mirror_directions(views.wo_local[texels]), model.lmax)  # (t, N, n)
+    w = np.asarray(views.weight[texels], np.float64)
+    # channels: L, then B (0 for views without an image), sharing directions and weights
+    f = np.concatenate([views.incoming[texels], views.radiance[texels]], axis=2)
+    inverse, coeffs, seen = _fit(y[:, chosen], w[:, chosen], f[:, chosen], model.regulariser, model.lam)
+    spectra_now = _degree_sums(coeffs[:, None] ** 2, model.lmax)  # (t, 1, L+1, 6)
+    if len(known) < len(chosen):  # the posterior from the views with images only
+        _, known_coeffs, known_seen = _fit(y[:, known], w[:, known], f[:, known], model.regulariser, model.lam)
+        spectra_known = _degree_sums(known_coeffs[:, None] ** 2, model.lmax)[:, 0]
+    else:
+        spectra_known, known_seen = spectra_now[:, 0], seen
+    posterior = _posterior(model, spectra_known, known_seen, (w[:, known] > 0).sum(axis=1))  # (t, C, G)
+    filters = model.filters
+    now = _texel_entropy(model, spectra_now[..., :3], seen[:, None], posterior, filters, compiled)[:, 0]
+    spectra = _spectra_with(inverse, coeffs[..., :3], y[:, others], w[:, others], f[:, others, :3], model.lmax)
+    # A first sample of a texel (W_00 = 0) is fitted by a constant: not identifiable, entropy stays 1.
+    sees = (w[:, others] > 0) & (seen[:, None] | (model.regulariser[0] > 0))
+    after = np.repeat(now[:, None], len(views), axis=1)
+    after[:, others] = np.where(sees, _texel_entropy(model, spectra, sees, posterior, filters, compiled), now[:, None])
+    return now, after
+
+
+def _chunk_size(n_views: int, model: SelectionModel, chunk: int | None) -> int:
+    """Texels per chunk: ``chunk``, or about `_CHUNK_VALUES` (texel, view, coefficient) values."""
+    return chunk or max(1, _CHUNK_VALUES // (n_views * n_coeffs(model.lmax)))
+
+
+def _check_chosen(chosen: Sequence[int], n_views: int) -> np.ndarray:
+    chosen = np.asarray(sorted({check_int(int(v), "view", 0) for v in chosen}), np.int64)
+    if len(chosen) and chosen[-1] >= n_views:
+        raise ValueError(f"chosen view {chosen[-1]} out of range: there are {n_views} views")
+    return chosen
+
+
 def rank_views(model: SelectionModel, views: CandidateViews, chosen: Sequence[int], compiled: bool = True,
                chunk: int | None = None) -> Ranking:
     """Expected mean entropy over the T texels of the chosen views and of each other view added.
@@ -428,33 +508,13 @@ def rank_views(model: SelectionModel, views: CandidateViews, chosen: Sequence[in
     Ranking
     """
     n_tex, n_views = views.weight.shape
-    chosen = np.asarray(sorted({check_int(int(v), "view", 0) for v in chosen}), np.int64)
-    if len(chosen) and chosen[-1] >= n_views:
-        raise ValueError(f"chosen view {chosen[-1]} out of range: there are {n_views} views")
-    known = chosen[views.known[chosen]]
-    others = np.setdiff1d(np.arange(n_views), chosen)
-    n = n_coeffs(model.lmax)
-    chunk = chunk or max(1, _CHUNK_VALUES // (n_views * n))
-    filters = model.filters
-    current, gain = 0.0, np.zeros(n_views)
-    for start in range(0, n_tex, chunk):
-        texels = slice(start, min(n_tex, start + chunk))
-        y = real_sh(mirror_directions(views.wo_local[texels]), model.lmax)  # (t, N, n)
-        w = np.asarray(views.weight[texels], np.float64)
-        posterior = _posterior(model, y, w, views, texels, known)  # (t, C, G)
-        inverse, coeffs, seen = _fit(y[:, chosen], w[:, chosen], views.incoming[texels][:, chosen],
-                                     model.regulariser, model.lam)
-        now = _texel_entropy(model, _degree_sums(coeffs[:, None] ** 2, model.lmax), seen[:, None], posterior,
-                             filters, compiled)[:, 0]
-        spectra = _spectra_with(inverse, coeffs, y[:, others], w[:, others], views.incoming[texels][:, others],
-                                model.lmax)
-        # A first sample of a texel (W_00 = 0) is fitted by a constant: not identifiable, entropy stays 1.
-        sees = (w[:, others] > 0) & (seen[:, None] | (model.regulariser[0] > 0))
-        after = _texel_entropy(model, spectra, sees, posterior, filters, compiled)
-        current += now.sum()
-        gain[others] += np.where(sees, now[:, None] - after, 0.0).sum(axis=0)
-    current /= n_tex
-    return Ranking(current, current - gain / n_tex, views.weight.sum(axis=0))
+    chosen = _check_chosen(chosen, n_views)
+    now, after = np.empty(n_tex), np.empty((n_tex, n_views))
+    step = _chunk_size(n_views, model, chunk)
+    for start in range(0, n_tex, step):
+        texels = np.arange(start, min(n_tex, start + step))
+        now[texels], after[texels] = _entropies(model, views, chosen, texels, compiled)
+    return Ranking(float(now.mean()), after.mean(axis=0), views.weight.sum(axis=0))
 
 
 def _texel_entropy(model: SelectionModel, spectra: np.ndarray, sees: np.ndarray, posterior: np.ndarray,
@@ -472,11 +532,12 @@ def _texel_entropy(model: SelectionModel, spectra: np.ndarray, sees: np.ndarray,
 
 
 def greedy_selection(model: SelectionModel, views: CandidateViews, k: int, chosen: Sequence[int] = (),
-                     compiled: bool = True) -> tuple[list[int], list[Ranking]]:
+                     compiled: bool = True, chunk: int | None = None) -> tuple[list[int], list[Ranking]]:
     """k views added one at a time, each the largest expected decrease of mean entropy.
 
     Ties (e.g. the first view of an empty set, which leaves every texel at entropy 1) go
-    to the larger coverage, then to the lower index.
+    to the larger coverage, then to the lower index. After a pick only the texels it sees
+    are evaluated again: elsewhere the fits, the posterior and every expectation are unchanged.
 
     Parameters
     ----------
@@ -487,7 +548,7 @@ def greedy_selection(model: SelectionModel, views: CandidateViews, k: int, chose
         Views to add (at most the candidates left).
     chosen : sequence of int
         Views taken already.
-    compiled : bool
+    compiled, chunk
         See `rank_views`.
 
     Returns
@@ -495,20 +556,30 @@ def greedy_selection(model: SelectionModel, views: CandidateViews, k: int, chose
     picks : list of int
         The added views in order.
     rankings : list of Ranking
-        The ranking each pick was made from, and the ranking after the last pick (k + 1).
+        The ranking each pick was made from, and the ranking after the last pick (k + 1 in all),
+        each equal to `rank_views` of the views chosen by then.
     """
-    chosen = list(chosen)
-    k = min(check_int(k, "k", 0), len(views) - len(set(chosen)))
+    n_tex, n_views = views.weight.shape
+    chosen = list(_check_chosen(chosen, n_views))
+    k = min(check_int(k, "k", 0), n_views - len(chosen))
+    step = _chunk_size(n_views, model, chunk)
+    coverage = views.weight.sum(axis=0)
+    now, after = np.empty(n_tex), np.empty((n_tex, n_views))
+    stale = np.arange(n_tex)
     picks, rankings = [], []
     for _ in range(k + 1):
-        ranking = rank_views(model, views, chosen, compiled)
-        rankings.append(ranking)
+        for start in range(0, len(stale), step):
+            texels = stale[start : start + step]
+            now[texels], after[texels] = _entropies(model, views, np.array(sorted(chosen), np.int64), texels,
+                                                    compiled)
+        rankings.append(Ranking(float(now.mean()), after.mean(axis=0), coverage))
         if len(picks) == k:
             break
-        free = np.setdiff1d(np.arange(len(views)), chosen)
-        best = free[np.lexsort((free, -ranking.coverage[free], ranking.expected[free]))[0]]
-        picks.append(int(best))
-        chosen.append(int(best))
+        free = np.setdiff1d(np.arange(n_views), chosen)
+        best = int(free[np.lexsort((free, -coverage[free], rankings[-1].expected[free]))[0]])
+        picks.append(best)
+        chosen.append(best)
+        stale = np.nonzero(views.weight[:, best] > 0)[0]
     return picks, rankings
 
 
@@ -540,3 +611,77 @@ def farthest_views(directions: np.ndarray, k: int) -> np.ndarray:
         picks.append(nxt)
         nearest = np.maximum(nearest, d @ d[nxt])
     return np.array(picks, np.int64)
+
+
+# --------------------------------------------------------------------------
+# a capture and candidate poses (rule view_selection)
+# --------------------------------------------------------------------------
+def capture_views(obs: Observations, texels: np.ndarray, incoming_map: np.ndarray) -> CandidateViews:
+    """A capture's K views (images known) on ``texels``, with the light of ``incoming_map``.
+
+    Parameters
+    ----------
+    obs : Observations
+        The capture, T texels x K views.
+    texels : numpy.ndarray
+        ``(t,)`` indices of the texels the selection averages over (`sample_texels`).
+    incoming_map : numpy.ndarray
+        ``(H, W, 3)``: the environment band-limited at the a' of the views the selection ends with.
+    """
+    wo = np.asarray(obs.wo_local[texels], np.float64)
+    return CandidateViews(np.asarray(obs.weight[texels], np.float64), wo,
+                          mirror_light(obs.frame[texels], wo, incoming_map).astype(np.float64),
+                          tuple(obs.meta["views"]), np.asarray(obs.radiance[texels], np.float64),
+                          np.ones(wo.shape[1], bool))
+
+
+def capture_and_candidates(obs: Observations, texels: np.ndarray, cameras: Cameras, incoming_map: np.ndarray,
+                           occluded: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+                           ray_offset: float) -> CandidateViews:
+    """`capture_views` followed by N candidate poses (no image).
+
+    Parameters
+    ----------
+    obs, texels, incoming_map
+        As in `capture_views`.
+    cameras : Cameras
+        The N candidate poses.
+    occluded, ray_offset
+        As in `candidate_views`.
+    """
+    sub = obs.texels.subset(texels)
+    geometry = view_geometry(sub, cameras, incoming_map)
+    return capture_views(obs, texels, incoming_map) + candidate_views(sub.position, sub.normal, geometry, occluded,
+                                                                      cameras.names, ray_offset)
+
+
+def ranking_table(views: CandidateViews, first: int, picks: Sequence[int], rankings: Sequence[Ranking]
+                  ) -> pd.DataFrame:
+    """The candidates ranked: the greedy picks in order, then the rest by the expected mean entropy
+    with each added to the picks.
+
+    Parameters
+    ----------
+    views : CandidateViews
+        The capture's views (the first ``first``) and the candidates.
+    first : int
+        Number of the capture's views.
+    picks, rankings
+        `greedy_selection` of the candidates.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per candidate: ``rank`` (1 = best), ``view``, ``selected`` (a greedy pick),
+        ``expected_mean_entropy`` (after adding it: for a pick, to the capture and the picks before
+        it; otherwise to the capture and every pick), ``expected_decrease`` of that addition and
+        ``seen_texels`` (the fraction of the sampled texels the view sees).
+    """
+    last = rankings[-1]
+    rest = [v for v in np.argsort(last.expected, kind="stable") if v >= first and v not in picks]
+    seen = (views.weight > 0).mean(axis=0)
+    rows = [{"view": views.names[v], "selected": True, "expected_mean_entropy": rankings[i + 1].current,
+             "expected_decrease": rankings[i].decrease[v], "seen_texels": seen[v]} for i, v in enumerate(picks)]
+    rows += [{"view": views.names[v], "selected": False, "expected_mean_entropy": last.expected[v],
+              "expected_decrease": last.decrease[v], "seen_texels": seen[v]} for v in rest]
+    return pd.DataFrame(rows).rename_axis("rank").reset_index().assign(rank=lambda t: t["rank"] + 1)
