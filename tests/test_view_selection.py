@@ -5,11 +5,13 @@ import pytest
 
 from freqbrdf.sh import fibonacci_hemisphere, power_spectrum, real_sh
 from freqbrdf.shfit import fit_sh, mirror_directions
-from freqbrdf.spectrum import grid_entropy, spectrum_objective
+from freqbrdf.spectrum import grid_entropy, spectrum_objective, spectrum_search
 from freqbrdf.view_selection import (
     CandidateViews,
     SelectionModel,
+    _degree_sums,
     _fit,
+    _posterior,
     _spectra_with,
     expected_entropy,
     farthest_views,
@@ -147,3 +149,21 @@ def test_texel_sample_is_seeded_and_model_refuses_what_it_does_not_mirror():
         model(sh={**SH, "regulariser": "none"})
     with pytest.raises(ValueError, match="spectrum.normalise: light, got 'reference'"):
         SelectionModel.from_config(SH, {**SPECTRUM, "normalise": "reference"}, 0.2, 2)
+
+
+def test_posterior_is_the_likelihood_of_the_spectrum_search():
+    views, m = scene(n_tex=30), model(posterior_min_views=1)
+    keep = [0, 2, 4, 5, 7, 9]
+    d = mirror_directions(views.wo_local[:, keep])
+    w = views.weight[:, keep]
+    coeffs = fit_sh(d, np.concatenate([views.radiance, views.incoming], axis=2)[:, keep], w, 4, "exp", 1e-3,
+                    penalise_dc=False)
+    s_b, s_l = power_spectrum(coeffs[..., :3]), power_spectrum(coeffs[..., 3:])
+    search = spectrum_search(s_b, s_l, m.ks, m.alpha, sigma=0.01)
+    y = real_sh(d, 4)
+    _, mine, seen = _fit(y, w, np.concatenate([views.incoming, views.radiance], axis=2)[:, keep], m.regulariser,
+                         m.lam)
+    p = _posterior(m, _degree_sums(mine[:, None] ** 2, 4)[:, 0], seen, (w > 0).sum(axis=1))  # (T, C, G)
+    np.testing.assert_array_equal(p.argmax(axis=2), search.ks_index * 4 + search.alpha_index)
+    entropy = -(p * np.log(np.maximum(p, 1e-300))).sum(axis=2) / np.log(16)
+    np.testing.assert_allclose(entropy, search.entropy_rgb, atol=1e-5)
