@@ -144,6 +144,7 @@ def final_outputs():
     outputs.append("results/tables/metrics.csv")
     outputs += report_outputs()  # rules/report.smk: tables, claims, per-capture figures
     outputs += gltf_outputs()  # rules/export.smk: .glb files, .hdr environments, viewer pages
+    outputs += view_selection_outputs()  # rules/view_selection.smk
     return outputs
 
 
@@ -184,6 +185,22 @@ def real_capture_outputs():
         outputs.append(f"results/tables/real/{o}_{e}_{POSES}_relight.csv")
         if "textures" in capture:
             outputs.append(f"results/tables/real/{o}_{e}_{POSES}.csv")
+    return outputs
+
+
+# ---- input functions and targets of rules/view_selection.smk
+def candidate_poses(wildcards):
+    """The cameras.json of config view_selection.candidate_poses, if one is given."""
+    path = config["view_selection"]["candidate_poses"]
+    return {"candidates": path} if path else {}
+
+
+def view_selection_outputs():
+    """The ranked candidates of the first synthetic capture and, with view_selection.sweep_counts,
+    the comparison of selection strategies (targets of rule all)."""
+    outputs = [f"results/view_selection/{o}/{e}/{POSES}/ranked.tsv" for o, e in VIEW_SELECTION_CAPTURES]
+    if VIEW_SELECTION_SWEEP_CAPTURES:
+        outputs += ["results/tables/view_selection.tsv", "results/figures/view_selection.png"]
     return outputs
 
 

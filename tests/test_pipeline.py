@@ -315,6 +315,26 @@ def test_tables_and_claims_follow_the_metrics(run):
         assert mse[merged] == pytest.approx(mse[start], rel=1e-6)
 
 
+def test_view_selection_ranks_candidates_and_compares_strategies(run):
+    import pandas as pd
+
+    # the tiny preset: 6 candidate poses ranked for the capture, 3 picked greedily
+    ranked = pd.read_csv(run / "results/view_selection/sphere/studio/gt/ranked.tsv", sep="\t")
+    assert list(ranked["rank"]) == list(range(1, 7)) and list(ranked.selected) == [True] * 3 + [False] * 3
+    assert ranked.view.str.startswith("candidate_").all() and ranked.expected_mean_entropy.between(0, 1).all()
+    assert np.allclose(np.diff(ranked.expected_mean_entropy[:3]), -ranked.expected_decrease[1:3], atol=1e-5)
+    cameras = cameras_from_json(read_json(run / "results/view_selection/sphere/studio/gt/candidates.json"))
+    assert sorted(cameras.names) == sorted(ranked.view)
+    # the sweep at 2 and 3 of the 4 training views: one entropy-guided, one evenly spread, 2 random subsets each
+    table = pd.read_csv(run / "results/tables/view_selection.tsv", sep="\t")
+    counts = table.groupby(["views", "strategy"]).size().unstack()
+    assert list(counts.index) == [2, 3] and counts.to_dict("list") == {"entropy": [1, 1], "even": [1, 1],
+                                                                       "random": [2, 2]}
+    assert table.mse_average.between(0, 1).all() and table.mean_entropy.between(0, 1).all()
+    assert all(len(names.split()) == k for names, k in zip(table.view_names, table.views))
+    assert read_png(run / "results/figures/view_selection.png").shape[1] > 300
+
+
 def test_report_figures_are_written_per_capture(run):
     for capture in ("sphere/studio", "sphere_copy/studio_copy"):
         figure = read_png(run / f"results/figures/{capture}/gt/maps.png")

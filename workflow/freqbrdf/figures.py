@@ -321,3 +321,39 @@ def entropy_agreement_figure(path: str | os.PathLike, entropy: Mapping[str, np.n
     axes[0].set_ylabel("entropy: Mitsuba grid")
     fig.suptitle(title, fontsize=10)
     save_figure(fig, path, dpi=100)
+
+
+VIEW_SELECTION_STYLES = {"entropy": ("tab:red", "o", "entropy-guided"), "random": ("tab:grey", "s", "random"),
+                         "even": ("tab:blue", "^", "evenly spread")}
+
+
+def view_selection_figure(path: str | os.PathLike, table: pd.DataFrame) -> None:
+    """``freq``'s parameter MSE against the number of views per selection strategy, one panel per capture.
+
+    Parameters
+    ----------
+    path : path-like
+        PNG destination.
+    table : DataFrame
+        Columns ``object``, ``env``, ``strategy`` (keys of `VIEW_SELECTION_STYLES`), ``views``,
+        ``mse_average``; random strategies once per repetition (drawn as mean and range).
+    """
+    plt = pyplot()
+    captures = list(dict.fromkeys(zip(table["object"], table["env"])))
+    fig, axes = plt.subplots(1, len(captures), figsize=(3.2 * len(captures) + 0.6, 3.0), layout="constrained",
+                             squeeze=False)
+    for ax, (o, e) in zip(axes[0], captures):
+        rows = table[(table["object"] == o) & (table["env"] == e)]
+        for strategy, (colour, marker, label) in VIEW_SELECTION_STYLES.items():
+            mse = rows[rows["strategy"] == strategy].groupby("views")["mse_average"]
+            if not len(mse):
+                continue
+            mean = mse.mean()
+            ax.plot(mean.index, mean.values, marker=marker, color=colour, label=label)
+            if mse.size().max() > 1:
+                ax.fill_between(mean.index, mse.min().values, mse.max().values, color=colour, alpha=0.2, lw=0)
+        ax.set_title(f"{o} / {e}", fontsize=9)
+        ax.set_xlabel("training views k")
+    axes[0, 0].set_ylabel("parameter MSE (freq)")
+    axes[0, -1].legend(fontsize=8)
+    save_figure(fig, path, dpi=100)

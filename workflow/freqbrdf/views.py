@@ -11,16 +11,19 @@ through the same SH fit, spectrum search and ``freq`` estimator as the pipeline.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from .artefacts import Observations
+from .light import LightQuadrature
 from .observations import band_limit_parameter, band_limited_envmap, sample_equirect
-from .shfit import mirror_directions
+from .optimise import OptimiseSettings, optimise
+from .shfit import fit_observations, mirror_directions
+from .spectrum import SpectrumSearch, search_fit
 from .validation import check_int
 
-__all__ = ["view_subsets", "view_subset"]
+__all__ = ["view_subsets", "view_subset", "mirror_light", "estimate_subset"]
 
 
 def view_subsets(n_views: int, counts: Sequence[int], seed: int) -> dict[int, np.ndarray]:
@@ -63,9 +66,65 @@ def view_subset(obs: Observations, views: np.ndarray, envmap: np.ndarray, band_l
     views = np.asarray(views, dtype=np.int64)
     a_prime = band_limit_parameter(len(views), band_limit)
     wo = np.asarray(obs.wo_local[:, views])
-    world = np.einsum("tji,tkj->tki", obs.frame, mirror_directions(wo))  # local -> world mirror directions
-    incoming = sample_equirect(band_limited_envmap(envmap, a_prime), world).astype(np.float32)
+    incoming = mirror_light(obs.frame, wo, band_limited_envmap(envmap, a_prime)).astype(np.float32)
     names = [obs.meta["views"][v] for v in views]
     meta = {**obs.meta, "views": names, "band_limit": {"rule": band_limit, "a_prime": a_prime}}
     return Observations(obs.texels, np.asarray(obs.radiance[:, views]), np.asarray(obs.weight[:, views]), wo,
                         incoming, meta)
+
+
+def mirror_light(frame: np.ndarray, wo_local: np.ndarray, incoming_map: np.ndarray) -> np.ndarray:
+    """The light along each pair's world mirror direction (paper section 4.2: L sampled where B is).
+
+    Parameters
+    ----------
+    frame : ndarray, shape (T, 3, 3)
+        Rows tangent, bitangent, normal (world -> local).
+    wo_local : ndarray, shape (T, K, 3)
+        Unit directions to the cameras in the texel frames.
+    incoming_map : ndarray, shape (H, W, 3)
+        The band-limited environment map (`band_limited_envmap`).
+
+    Returns
+    -------
+    ndarray, shape (T, K, 3)
+    """
+    world = np.einsum("tji,tkj->tki", frame, mirror_directions(wo_local))  # local -> world mirror directions
+    return sample_equirect(incoming_map, world)
+
+
+def estimate_subset(obs: Observations, views: np.ndarray, envmap: np.ndarray, band_limit: str,
+                    sh: Mapping[str, object], spectrum: Mapping[str, object], settings: OptimiseSettings,
+                    light: LightQuadrature, irradiance: np.ndarray, workers: int = 1
+                    ) -> tuple[Observations, SpectrumSearch, dict[str, np.ndarray]]:
+    """``freq`` on the views ``views`` of a capture, as the pipeline runs it on a whole capture.
+
+    Parameters
+    ----------
+    obs : Observations
+        T texels x K views.
+    views : ndarray, shape (k,)
+        Indices of the views kept.
+    envmap, band_limit
+        As in `view_subset`.
+    sh, spectrum : mapping
+        Config ``sh`` and ``spectrum`` (SH fit, spectrum search and entropy).
+    settings, light, irradiance
+        The ``freq`` optimiser's settings, light and irradiance
+        (:func:`freqbrdf.optimise.estimate_light` of the whole capture: neither depends on the views).
+    workers : int
+        Threads.
+
+    Returns
+    -------
+    sub : Observations
+        The subset (`view_subset`).
+    search : SpectrumSearch
+        Its spectrum search (entropy 1 where no kept view observes a texel).
+    estimate : dict
+        Per-texel ``base_color`` (T, 3), ``roughness`` and ``metallic`` (T,) of ``freq``.
+    """
+    sub = view_subset(obs, views, envmap, band_limit)
+    search = search_fit(fit_observations(sub, sh, workers), sub.observed, spectrum, workers)
+    estimate, _ = optimise(sub, irradiance, light, method="freq", settings=settings)
+    return sub, search, estimate

@@ -12,10 +12,8 @@ from freqbrdf.figures import views_figure
 from freqbrdf.io import atomic_path, read_exr
 from freqbrdf.logs import run_script
 from freqbrdf.metrics import parameter_mse
-from freqbrdf.optimise import OptimiseSettings, estimate_light, optimise
-from freqbrdf.shfit import fit_observations
-from freqbrdf.spectrum import search_fit
-from freqbrdf.views import view_subset, view_subsets
+from freqbrdf.optimise import OptimiseSettings, estimate_light
+from freqbrdf.views import estimate_subset, view_subsets
 
 
 def main(smk, log):
@@ -28,9 +26,8 @@ def main(smk, log):
     rows = []
     for count, views in view_subsets(len(obs.meta["views"]), p.counts, p.seed).items():
         start = time.perf_counter()
-        sub = view_subset(obs, views, envmap, p.band_limit)
-        search = search_fit(fit_observations(sub, p.sh, smk.threads), sub.observed, p.spectrum, smk.threads)
-        estimate, _ = optimise(sub, e, light, method="freq", settings=settings)
+        sub, search, estimate = estimate_subset(obs, views, envmap, p.band_limit, p.sh, p.spectrum, settings, light,
+                                                e, smk.threads)
         texels = sub.texels
         scored = texels.texel[sub.observed]
         mse = parameter_mse(truth, Svbrdf.from_texels(texels.resolution, texels.texel, estimate, sub.observed), scored)

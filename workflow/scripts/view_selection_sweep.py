@@ -1,0 +1,87 @@
+"""Rule view_selection_sweep: freq's parameter MSE with k training views chosen by expected
+entropy, at random and evenly spread, at equal k."""
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf
+from freqbrdf.brdf import TEXTURES
+from freqbrdf.cameras import cameras_from_json
+from freqbrdf.io import atomic_path, read_exr, read_json
+from freqbrdf.logs import run_script
+from freqbrdf.metrics import parameter_mse
+from freqbrdf.observations import band_limit_parameter, band_limited_envmap
+from freqbrdf.optimise import OptimiseSettings, estimate_light
+from freqbrdf.view_selection import (
+    SelectionModel,
+    capture_views,
+    farthest_views,
+    greedy_selection,
+    sample_texels,
+    set_threads,
+)
+from freqbrdf.views import estimate_subset, view_subsets
+
+
+def subsets(smk, obs, envmap, texels, directions, k, log):
+    """The k views of each strategy: (strategy, repetition) -> (view indices, seconds to choose)."""
+    p = smk.params
+    a_prime = band_limit_parameter(k, p.band_limit)
+    start = time.perf_counter()
+    pool = capture_views(obs, texels, band_limited_envmap(envmap, a_prime))
+    model = SelectionModel.from_config(p.sh, p.spectrum, a_prime, p.settings["posterior_min_views"])
+    picks, rankings = greedy_selection(model, pool, k)
+    out = {("entropy", 0): (np.array(picks), time.perf_counter() - start)}
+    log.info("k = %d: entropy-guided views %s, expected mean entropy %.3f (%.1f s)", k, picks,
+             rankings[-1].current, out[("entropy", 0)][1])
+    start = time.perf_counter()
+    out[("even", 0)] = (farthest_views(directions, k), time.perf_counter() - start)
+    for i, seed in enumerate(p.seeds):
+        start = time.perf_counter()
+        out[("random", i)] = (view_subsets(len(directions), [k], seed)[k], time.perf_counter() - start)
+    return out
+
+
+def main(smk, log):
+    set_threads(smk.threads)
+    obs = read_observations(smk.input.observations)
+    envmap = read_exr(smk.input.envmap)
+    truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth)))
+    cameras_file = Path(smk.input.poses) / "cameras.json"
+    cameras = cameras_from_json(read_json(cameras_file), source=cameras_file)
+    if list(cameras.names) != list(obs.meta["views"]):
+        raise ValueError(f"{cameras_file}: views {cameras.names} are not the observations' {obs.meta['views']}")
+    p = smk.params
+    settings = OptimiseSettings.from_config(p.optimise, workers=smk.threads)
+    light, e = estimate_light(envmap, obs, "freq", p.optimise["lmax"])
+    texels = sample_texels(len(obs.texels), p.settings["texels"], p.texel_seed)
+    seen = obs.observed
+    centre = obs.texels.position[seen].mean(axis=0)
+    directions = cameras.centres - centre
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    n_views, scored = len(directions), obs.texels.texel[seen]
+    done, rows = {}, []
+    for k in sorted({min(int(c), n_views) for c in p.settings["sweep_counts"]}):
+        for (strategy, rep), (views, choose_s) in subsets(smk, obs, envmap, texels, directions, k, log).items():
+            key = tuple(sorted(views.tolist()))
+            if key not in done:  # e.g. k = every view: one estimate for every strategy
+                start = time.perf_counter()
+                sub, search, estimate = estimate_subset(obs, views, envmap, p.band_limit, p.sh, p.spectrum, settings,
+                                                        light, e, smk.threads)
+                textures = Svbrdf.from_texels(obs.texels.resolution, obs.texels.texel, estimate, sub.observed)
+                done[key] = {"observed_texels": int(sub.observed.sum()),
+                             "mean_entropy": float(search.entropy[seen].mean()),
+                             **{f"mse_{n}": v for n, v in parameter_mse(truth, textures, scored).items()},
+                             "estimate_seconds": time.perf_counter() - start}
+            rows.append({"strategy": strategy, "repetition": rep, "views": k, **done[key],
+                         "select_seconds": choose_s, "view_names": " ".join(obs.meta["views"][v] for v in views)})
+            log.info("k = %d, %s %d: MSE %.4f, mean entropy %.3f, %d texels observed", k, strategy, rep,
+                     rows[-1]["mse_average"], rows[-1]["mean_entropy"], rows[-1]["observed_texels"])
+    with atomic_path(smk.output.table) as f:
+        pd.DataFrame(rows).to_csv(f, sep="\t", index=False, float_format="%.6g")
+
+
+run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
