@@ -40,9 +40,11 @@ def test_mismatched_sizes_and_empty_masks_are_refused():
 from freqbrdf.colour import to_srgb  # noqa: E402
 from freqbrdf.metrics import (  # noqa: E402
     channel_scale,
+    hdr_pair,
     image_mse,
     parameter_error_map,
     relight_scores,
+    scored_pixels,
     psnr_h,
     psnr_l,
     ssim,
@@ -181,3 +183,20 @@ def test_time_to_reach_interpolates_and_says_never():
     assert time_to_reach(t, np.array([0.2, 0.05, 0.2, 0.2]), 0.1) == pytest.approx(10 * (0.1 / 0.15))
     with pytest.raises(ValueError, match="must not decrease"):
         time_to_reach(t[::-1], mse, 0.1)
+
+
+def test_hdr_pair_is_what_psnr_h_averages():
+    rng = np.random.default_rng(7)
+    pred, ref = 3 * rng.random((12, 10, 3)), 3 * rng.random((12, 10, 3))
+    mask = rng.random((12, 10)) > 0.3
+    for normalise in (True, False):
+        p, r = hdr_pair(pred, ref, mask, clip=1.5, normalise=normalise)
+        assert p.max() <= 1.5 and r.max() <= 1.5
+        mse = ((p - r) ** 2).mean(axis=2)[mask].mean()
+        assert -10 * np.log10(mse) == pytest.approx(psnr_h(pred, ref, mask, clip=1.5, normalise=normalise))
+
+
+def test_scored_pixels_keeps_full_coverage_read_from_a_png():
+    coverage = np.array([[255, 254], [0, 128]]) / 255.0
+    assert scored_pixels(coverage, 1.0).tolist() == [[True, False], [False, False]]
+    assert scored_pixels(coverage, 0.5).tolist() == [[True, True], [False, True]]
