@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from freqbrdf.figures import GREY, atlas_masks, capture_maps_figure, error_scale, method_label, relight_figure
+from freqbrdf.figures import GREY, atlas_masks, capture_maps_figure, error_scale, relight_figure
 from freqbrdf.io import read_png
 from freqbrdf.metrics import parameter_mse, psnr_h
 
@@ -54,13 +54,6 @@ def test_maps_figure_draws_unobserved_texels_grey_in_the_entropy_map(tmp_path):
     grey = (np.abs(image - float(GREY) * 255) <= 1).all(axis=-1)  # 8-bit rounding
     # half of one map (about 190 x 95 pixels); the colour bars' grey steps are a few pixels wide
     assert int(grey.sum()) > 5000
-
-
-def test_figures_print_the_registry_display_names():
-    assert method_label("freq_noshadow") == "Ours, no shadowing"
-    with pytest.raises(ValueError, match="not_a_method"):
-        capture_maps_figure("unused.png", None, {"not_a_method": None}, np.ones((2, 2)), np.ones((2, 2), bool),
-                            np.ones((2, 2), bool), "t")
 
 
 def test_relight_figure_prints_each_views_psnr_h(tmp_path):

@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .colour import to_srgb, tonemap
-from .methods import get_method
 from .metrics import hdr_pair, parameter_error_map, psnr_h
 from .plots import pyplot, save_figure
+from .tables import method_label  # the registry's display names, as the tables print them
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -56,11 +56,6 @@ def error_scale(errors: Mapping[str, np.ndarray], seen: np.ndarray, quantile: fl
     """
     values = np.concatenate([e[seen] for e in errors.values()]) if errors and seen.any() else np.zeros(1)
     return max(float(np.quantile(values, quantile)), 1e-6)
-
-
-def method_label(name: str) -> str:
-    """The display name of a method (:data:`freqbrdf.methods.METHODS`), as the tables print it."""
-    return get_method(name).label
 
 
 def capture_maps_figure(
