@@ -23,7 +23,12 @@ rule metrics:
         views=[f"results/views/{o}/{e}/{POSES}/views.tsv" for o, e in VIEWS_CAPTURES],
         code=library("metrics"),
     output:
-        "results/tables/metrics.csv",
+        report(
+            "results/tables/metrics.csv",
+            category="Tables",
+            caption="../report/metrics.rst",
+            labels={"table": "metrics.csv (every number)"},
+        ),
     log:
         "results/logs/metrics.log",
     benchmark:

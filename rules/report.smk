@@ -4,6 +4,8 @@
 
 # Stems of the table files (freqbrdf.tables.summaries keys): the paper's Tables 1, 2, 4, 5, 6 and the claims.
 TABLES = ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "table6_merge", "claims"]
+# What the report's landing summary says was run (freqbrdf.tables.run_facts).
+RUN_KEYS = ["seed", "objects", "real_captures", "capture_envs", "envs", "render", "poses", "methods", "evaluate"]
 
 
 # Methods with a logged MSE curve (differentiable rendering) and those shown as points.
@@ -33,6 +35,8 @@ rule tables:
         claims_html=report(
             "results/tables/claims.html", category="Tables", caption="../report/claims.rst", labels={"table": "claims"}
         ),
+        # The report's landing page (report/workflow.rst) shows it.
+        run_summary="results/tables/run_summary.html",
     log:
         "results/logs/tables.log",
     conda:
@@ -41,6 +45,7 @@ rule tables:
         poses=POSES,
         # Which of the paper's environments each of ours stands beside (Table 2).
         env_kinds={env: config["envs"][env]["kind"] for env in ENVS},
+        run={key: config[key] for key in RUN_KEYS},
     script:
         "../workflow/scripts/report_tables.py"
 
