@@ -107,7 +107,7 @@ def capture_maps_figure(
     errors = {m: parameter_error_map(truth, est) for m, est in estimates.items()} if truth is not None else {}
     vmax = error_scale(errors, seen)
     rows = [("ground truth", truth)] + list(estimates.items())
-    fig, axes = plt.subplots(len(rows), 4, figsize=(4 * 2.1, len(rows) * 2.0 + 1.2), squeeze=False,
+    fig, axes = plt.subplots(len(rows), 4, figsize=(4 * 2.1, len(rows) * 1.75 + 0.9), squeeze=False,
                              layout="constrained")
     grey_map = plt.get_cmap("gray").with_extremes(bad=GREY)
     turbo = plt.get_cmap("turbo").with_extremes(bad=GREY)
@@ -142,8 +142,9 @@ def capture_maps_figure(
     base_scale = ListedColormap(np.repeat(to_srgb(np.linspace(0.0, 1.0, 256))[:, None], 3, axis=1))
     for c, (cmap, label) in enumerate(((base_scale, "base colour, each channel (linear)"),
                                        (grey_map, "roughness"), (grey_map, "metallic"))):
+        # the space a bar takes is a fraction of its column's height: about one sixth of a row
         fig.colorbar(ScalarMappable(unit, cmap), ax=axes[:, c].tolist(), location="bottom", shrink=0.9,
-                     aspect=15, label=label)
+                     aspect=15, fraction=0.15 / len(rows), label=label)
     if shown_entropy is not None:
         fig.colorbar(shown_entropy, ax=axes[0, 3], shrink=0.9, label="entropy")
     if shown_error is not None:
@@ -228,9 +229,9 @@ def relight_figure(
         errors = {}
         for c, method in enumerate(methods, start=1):
             image = relit.get(env, {}).get(method)
-            if image is None:
+            if image is None:  # e.g. a merge, which has seen every capture environment
                 for ax in (ax_images[c], ax_errors[c]):
-                    ax.text(0.5, 0.5, "not run", ha="center", va="center", fontsize=8)
+                    ax.text(0.5, 0.5, f"not relit\nunder {env}", ha="center", va="center", fontsize=8)
                 continue
             ax_images[c].imshow(tonemap(image))
             p, q = hdr_pair(image, reference, mask, clip=clip, normalise=normalise)
