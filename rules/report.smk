@@ -4,8 +4,6 @@
 
 # Stems of the table files (freqbrdf.tables.summaries keys): the paper's Tables 1, 2, 4, 5, 6 and the claims.
 TABLES = ["table1_relighting", "table2_parameters", "table4_ablation", "table5_finetune", "table6_merge", "claims"]
-# What the report's landing summary says was run (freqbrdf.tables.run_facts).
-RUN_KEYS = ["seed", "objects", "real_captures", "capture_envs", "envs", "render", "poses", "methods", "evaluate"]
 
 
 # Methods with a logged MSE curve (differentiable rendering) and those shown as points.
@@ -45,7 +43,18 @@ rule tables:
         poses=POSES,
         # Which of the paper's environments each of ours stands beside (Table 2).
         env_kinds={env: config["envs"][env]["kind"] for env in ENVS},
-        run={key: config[key] for key in RUN_KEYS},
+        # what the report's landing summary says was run (freqbrdf.tables.run_facts)
+        run={
+            "seed": config["seed"],
+            "objects": SYNTHETIC_OBJECTS,
+            "real_captures": list(REAL_CAPTURES),
+            "capture_envs": CAPTURE_ENVS,
+            "envs": ENVS,
+            "relight_envs": config["evaluate"]["relight_envs"],
+            "render": {key: config["render"][key] for key in ("train_views", "test_views", "resolution", "spp")},
+            "poses": POSES,
+            "methods": METHODS,
+        },
     script:
         "../workflow/scripts/report_tables.py"
 

@@ -418,9 +418,9 @@ def test_summaries_cover_the_five_tables_and_the_claims():
                     "claims"]
 
 
-RUN = {"seed": 3, "objects": ["sphere", "torus"], "real_captures": {"orb": {"dir": "x"}}, "capture_envs": ["studio"],
+RUN = {"seed": 3, "objects": ["sphere", "torus"], "real_captures": ["orb"], "capture_envs": ["studio"],
        "envs": ["studio", "museum"], "render": {"train_views": 24, "test_views": 2, "resolution": 256, "spp": 64},
-       "poses": {"source": "gt"}, "methods": ["freq", "freq_noshadow"], "evaluate": {"relight_envs": "held_out"}}
+       "poses": "gt", "methods": ["freq", "freq_noshadow"], "relight_envs": "held_out"}
 
 
 def test_run_facts_state_the_configuration_with_display_names():
@@ -429,7 +429,7 @@ def test_run_facts_state_the_configuration_with_display_names():
     assert facts["Methods"] == "Ours (freq), Ours, no shadowing (freq_noshadow)"
     assert "24 training and 2 test views" in facts["Views"] and "256 x 256 pixels at 64" in facts["Views"]
     assert "held out" in facts["Relit under"] and facts["Seed"] == "3"
-    listed = dict(RUN, evaluate={"relight_envs": ["museum"]}, real_captures={})
+    listed = dict(RUN, relight_envs=["museum"], real_captures=[])
     assert tables.run_facts(listed)["Relit under"].startswith("museum,") and tables.run_facts(listed)["Real captures"] == "none"
 
 

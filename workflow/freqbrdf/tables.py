@@ -1085,17 +1085,17 @@ def run_facts(run: Mapping[str, object]) -> dict[str, str]:
     Parameters
     ----------
     run : mapping
-        The run's configuration, at least its keys ``seed``, ``objects``,
-        ``real_captures``, ``capture_envs``, ``envs``, ``render`` (``train_views``,
-        ``test_views``, ``resolution``, ``spp``), ``poses`` (``source``),
-        ``methods`` and ``evaluate`` (``relight_envs``).
+        From the run's configuration: ``seed``, ``objects``, ``real_captures``
+        (names), ``capture_envs``, ``envs``, ``relight_envs`` (config
+        ``evaluate.relight_envs``), ``render`` (``train_views``, ``test_views``,
+        ``resolution``, ``spp``), ``poses`` (config ``poses.source``) and ``methods``.
 
     Returns
     -------
     dict of str to str
         Aspect -> text, in reading order.
     """
-    render, relight = run["render"], run["evaluate"]["relight_envs"]
+    render, relight = run["render"], run["relight_envs"]
     if relight == "held_out":
         relit = "every environment a capture was not taken under (held out)"
     else:
@@ -1107,7 +1107,7 @@ def run_facts(run: Mapping[str, object]) -> dict[str, str]:
         "Relit under": f"{relit}, of {', '.join(run['envs'])}",
         "Views": (f"{render['train_views']} training and {render['test_views']} test views per capture, "
                   f"{render['resolution']} x {render['resolution']} pixels at {render['spp']} samples per pixel"),
-        "Poses": run["poses"]["source"],
+        "Poses": str(run["poses"]),
         "Methods": ", ".join(f"{method_label(m)} ({m})" for m in run["methods"]),
         "Seed": str(run["seed"]),
     }
