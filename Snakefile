@@ -5,11 +5,10 @@ snakemake --cores 2 --configfile config/paper.yaml    # paper-scale preset
 snakemake --report results/report.html
 """
 
+import sys
 from pathlib import Path
 
 from snakemake.utils import min_version
-
-from freqbrdf.config import check_config
 
 min_version("9.0")
 
@@ -17,6 +16,12 @@ min_version("9.0")
 # This repository: the directory of this file, also when the workflow is used as a
 # module from another (workflow.basedir is then the consumer's) or with --directory.
 REPO = Path(workflow.current_basedir)
+# The freqbrdf library is imported from this checkout, installed or not: Snakemake
+# appends its own module path to every script's, so the jobs find the same source
+# under --sdm conda, whose environment (envs/freqbrdf.yaml) cannot install it.
+sys.path.insert(0, str(REPO / "workflow"))
+
+from freqbrdf.config import check_config
 
 
 # The embedded default, found next to this file; --configfile and --config values

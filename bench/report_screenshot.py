@@ -8,9 +8,12 @@ script writes a copy of the report with a few lines of JavaScript that open
 that result (as a click in the navigation would: the caption on the left, the
 result on the right), opens the copy in headless Chromium over the DevTools
 pipe (``bench/devtools.py``), waits until the result is shown (a figure's
-image decoded, a table's frame loaded) and only then takes the screenshot:
+image decoded, a table's frame loaded) and only then takes the screenshot,
+with the text the window shows beside it (``{view}.txt``, the page's
+``innerText``; a table's frame has its own):
 
-- ``workflow.png``: the landing page (workflow description and rule graph);
+- ``workflow.png``: the landing page (the run's summary: what was run, the
+  claims with their verdicts, the headline numbers; then the rule graph);
 - ``tables.png``: results/tables/tables.html (the paper's Tables 1, 2, 4, 5);
 - ``claims.png``: results/tables/claims.html;
 - ``maps.png``, ``relight.png``: the first capture's figures.
@@ -115,7 +118,8 @@ def shown_expression(suffix: str | None) -> str:
 
 def screenshot(chromium: str, page: Path, out: Path, size: tuple[int, int], suffix: str | None,
                timeout_s: float = 120.0) -> None:
-    """Open ``page`` headless, wait until the view is shown, then write a PNG of the window.
+    """Open ``page`` headless, wait until the view is shown, then write a PNG of the window
+    and, beside it (``.txt``), the page's text.
 
     Raises RuntimeError when the view is not shown within ``timeout_s``.
     """
@@ -125,6 +129,7 @@ def screenshot(chromium: str, page: Path, out: Path, size: tuple[int, int], suff
         if not browser.wait_for(shown_expression(suffix), timeout_s):
             raise RuntimeError(f"{page}: the view of {suffix or 'the landing page'} was not shown within {timeout_s:.0f} s")
         browser.screenshot(out)
+        Path(out).with_suffix(".txt").write_text(browser.evaluate("document.body.innerText") or "", encoding="utf-8")
     finally:
         browser.close()
 

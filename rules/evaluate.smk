@@ -24,7 +24,12 @@ rule metrics:
         agreement=[f"results/entropy_agreement/{o}/{e}/{POSES}/agreement.json" for o, e in AGREEMENT_CAPTURES],
         code=library("metrics"),
     output:
-        "results/tables/metrics.csv",
+        report(
+            "results/tables/metrics.csv",
+            category="Tables",
+            caption="../report/metrics.rst",
+            labels={"table": "metrics.csv (every number)"},
+        ),
     log:
         "results/logs/metrics.log",
     benchmark:

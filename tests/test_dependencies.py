@@ -106,3 +106,53 @@ def test_every_imported_package_is_declared() -> None:
     # Snakemake is the workflow's (extra "workflow"): the library imports it only inside
     # check_config, which runs in the Snakefile, so freqbrdf installs beside any Snakemake
     assert "snakemake" not in declared() and "snakemake" in declared("workflow")
+
+
+# conda-forge's names of the PyPI distributions whose names differ there
+# (matplotlib-base: matplotlib without a GUI toolkit).
+CONDA_NAMES = {"matplotlib-base": "matplotlib"}
+
+
+def conda_env_pins(path: Path) -> tuple[dict[str, str], str]:
+    """PyPI name (lower case) -> version of every package of a conda env file, conda's and
+    pip's alike, and the Python spec."""
+    import yaml
+
+    pins, python = {}, None
+    for entry in yaml.safe_load(path.read_text())["dependencies"]:
+        if isinstance(entry, dict):
+            for pin in entry["pip"]:
+                assert re.fullmatch(r"[A-Za-z0-9_.\-]+==[0-9][A-Za-z0-9_.]*", pin), f"{path.name}: pip entry {pin!r} is not a pin"
+                name, version = pin.split("==")
+                pins[name.lower()] = version
+            continue
+        name, _, spec = entry.partition(" ")
+        if name == "python":
+            python = spec
+        elif name != "pip":
+            assert re.fullmatch(r"==[0-9][A-Za-z0-9_.]*", spec), f"{path.name}: {entry!r} is not pinned with =="
+            pins[CONDA_NAMES.get(name, name).lower()] = spec.removeprefix("==")
+    return pins, python
+
+
+def test_conda_env_has_exactly_the_pyproject_pins() -> None:
+    import tomllib
+
+    project = tomllib.loads((REPO / "workflow" / "pyproject.toml").read_text())["project"]
+    expected = {name.lower(): version for name, version in (pin.split("==") for pin in project["dependencies"])}
+    env_file = REPO / "envs" / "freqbrdf.yaml"
+    pins, python = conda_env_pins(env_file)
+    assert pins == expected
+    # The Python it creates is one pyproject accepts (requires-python >=3.11,<3.13).
+    assert python is not None and project["requires-python"] == ">=3.11,<3.13" and python in ("=3.11", "=3.12")
+    # Snakemake copies the file elsewhere before creating the environment: no path may be relative to it.
+    assert "../" not in env_file.read_text() and "-e " not in env_file.read_text()
+
+
+def test_conda_env_pins_are_read_from_both_sections(tmp_path: Path) -> None:
+    env = tmp_path / "env.yaml"
+    env.write_text("dependencies:\n  - python =3.11\n  - pip\n  - matplotlib-base ==1.0\n  - pip:\n      - Mitsuba==2.0\n")
+    assert conda_env_pins(env) == ({"matplotlib": "1.0", "mitsuba": "2.0"}, "=3.11")
+    env.write_text("dependencies:\n  - numpy >=2\n")
+    with pytest.raises(AssertionError, match="not pinned"):
+        conda_env_pins(env)

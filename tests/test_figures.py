@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from freqbrdf.figures import atlas_masks, capture_maps_figure, error_scale, relight_figure
+from freqbrdf.figures import GREY, atlas_masks, capture_maps_figure, error_scale, relight_figure
 from freqbrdf.io import read_png
-from freqbrdf.metrics import parameter_mse
+from freqbrdf.metrics import parameter_mse, psnr_h
 
 
 def _svbrdf(rng, r=8):
@@ -42,11 +42,32 @@ def test_maps_figure_labels_agree_with_parameter_mse(tmp_path):
     assert capture_maps_figure(tmp_path / "real.png", None, estimates, rng.random((8, 8)), inside, seen, "t") == {}
 
 
-def test_relight_figure_with_and_without_renders(tmp_path):
+def test_maps_figure_draws_unobserved_texels_grey_in_the_entropy_map(tmp_path):
+    """Every texel inside the atlas, half of them observed, entropy 1 everywhere (Turbo's dark
+    red): the unobserved half is drawn in the figure's grey, not at the top of the scale."""
+    rng = np.random.default_rng(2)
+    dark = {"base_color": 0.3 * rng.random((8, 8, 3)), "roughness": 0.5 * rng.random((8, 8)),
+            "metallic": 0.5 * rng.random((8, 8))}  # nothing near the grey 0.85
+    inside, seen = atlas_masks(8, np.arange(64), np.arange(64) < 32)
+    capture_maps_figure(tmp_path / "maps.png", None, {"freq": dark}, np.ones((8, 8)), inside, seen, "t")
+    image = read_png(tmp_path / "maps.png")[..., :3].astype(float)
+    grey = (np.abs(image - float(GREY) * 255) <= 1).all(axis=-1)  # 8-bit rounding
+    # half of one map (about 190 x 95 pixels); the colour bars' grey steps are a few pixels wide
+    assert int(grey.sum()) > 5000
+
+
+def test_relight_figure_prints_each_views_psnr_h(tmp_path):
     rng = np.random.default_rng(1)
-    references = {"museum": rng.random((16, 16, 3))}
-    relit = {"museum": {"freq": rng.random((16, 16, 3)), "rh2001": rng.random((16, 16, 3))}}
-    relight_figure(tmp_path / "r.png", references, relit, {("museum", "freq"): 20.0}, "t")
-    assert read_png(tmp_path / "r.png").shape[1] > 300
-    relight_figure(tmp_path / "none.png", {}, {}, {}, "t")
+    mask = np.zeros((16, 16), bool)
+    mask[4:12, 3:14] = True
+    references = {"museum": (rng.random((16, 16, 3)), mask), "sunny": (4 * rng.random((16, 16, 3)), mask)}
+    relit = {env: {"freq": rng.random((16, 16, 3)), "rh2001": rng.random((16, 16, 3))} for env in references}
+    scores = relight_figure(tmp_path / "r.png", references, relit, "t", clip=2.0, normalise=False)
+    assert set(scores) == {(env, m) for env in references for m in ("freq", "rh2001")}
+    for (env, method), score in scores.items():
+        assert score == pytest.approx(psnr_h(relit[env][method], references[env][0], mask, clip=2.0, normalise=False))
+    assert len(set(scores.values())) == 4  # each view its own number, not one per method
+    # two rows (renders, error images) per environment
+    assert read_png(tmp_path / "r.png").shape[0] > 2 * 2 * 150
+    assert relight_figure(tmp_path / "none.png", {}, {}, "t") == {}
     assert read_png(tmp_path / "none.png").shape[0] < read_png(tmp_path / "r.png").shape[0]

@@ -40,9 +40,11 @@ def test_mismatched_sizes_and_empty_masks_are_refused():
 from freqbrdf.colour import to_srgb  # noqa: E402
 from freqbrdf.metrics import (  # noqa: E402
     channel_scale,
+    hdr_pair,
     image_mse,
     parameter_error_map,
     relight_scores,
+    scored_pixels,
     psnr_h,
     psnr_l,
     ssim,
@@ -357,3 +359,20 @@ def test_scale_invariant_base_colour_ignores_a_per_channel_scale_and_unscored_te
     reference = base_color_si_scores(truth, noisy, texels)
     noisy.reshape(-1, 3)[:40] = rng.random((40, 3))  # outside the scored texels
     assert base_color_si_scores(truth, noisy, texels) == reference
+
+
+def test_hdr_pair_is_what_psnr_h_averages():
+    rng = np.random.default_rng(7)
+    pred, ref = 3 * rng.random((12, 10, 3)), 3 * rng.random((12, 10, 3))
+    mask = rng.random((12, 10)) > 0.3
+    for normalise in (True, False):
+        p, r = hdr_pair(pred, ref, mask, clip=1.5, normalise=normalise)
+        assert p.max() <= 1.5 and r.max() <= 1.5
+        mse = ((p - r) ** 2).mean(axis=2)[mask].mean()
+        assert -10 * np.log10(mse) == pytest.approx(psnr_h(pred, ref, mask, clip=1.5, normalise=normalise))
+
+
+def test_scored_pixels_keeps_full_coverage_read_from_a_png():
+    coverage = np.array([[255, 254], [0, 128]]) / 255.0
+    assert scored_pixels(coverage, 1.0).tolist() == [[True, False], [False, False]]
+    assert scored_pixels(coverage, 0.5).tolist() == [[True, True], [False, True]]

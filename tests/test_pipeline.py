@@ -398,7 +398,7 @@ def test_report_builds_and_a_headless_browser_shows_tables_and_figures(repo, run
     report = tmp_path / "report.html"
     snakemake(repo, run, "--report", str(report))
     html = report.read_text()
-    for result in ("results/tables/tables.html", "results/tables/claims.html",
+    for result in ("results/tables/tables.html", "results/tables/claims.html", "results/tables/metrics.csv",
                    "results/figures/sphere/studio/gt/maps.png", "results/figures/sphere/studio/gt/relight.png",
                    "viewer/sphere/studio/gt/viewer.html"):  # the maps caption links the viewer
         assert result in html
@@ -421,7 +421,14 @@ def test_report_builds_and_a_headless_browser_shows_tables_and_figures(repo, run
     for name in ("maps", "relight"):
         right = images[name][:, images[name].shape[1] // 2:, :3].reshape(-1, 3)
         assert len(np.unique(right, axis=0)) > 5000, f"{name}.png shows no figure"
-    assert _colour_count(images["workflow"], (238, 238, 255)) == 0  # the landing page is not the tables
+    # The landing page opens on the run's summary: what was run (the tiny config, methods by
+    # display name), the claims with their verdicts (coloured cells) and the headline numbers.
+    summary = (shots / "workflow.txt").read_text()
+    for text in ("This run", "The paper's claims on this run", "Headline numbers", "sphere", "studio",
+                 *(f"{METHODS[m].label} ({m})" for m in tiny_methods(repo))):
+        assert text in summary, f"summary page lacks {text!r}"
+    assert re.search(r"\d+ claims: \d+ hold, \d+ do not hold, \d+ not run", summary)
+    assert _colour_count(images["workflow"], (216, 245, 208)) + _colour_count(images["workflow"], (248, 208, 208)) > 200
 
 
 def test_sfm_on_too_small_a_capture_fails_in_one_line_and_leaves_no_poses(repo, run):

@@ -321,7 +321,9 @@ def test_html_marks_verdict_cells_escapes_and_is_a_valid_fragment():
     assert cells[3] == ("no", set())  # only the verdict column is coloured
     assert cells[5] == ("not run", {"notrun"})  # greyed anywhere
     assert "<b>" not in fragment and "&lt;b&gt;&amp;" in fragment
-    assert fragment.startswith("<h2>T&lt;1&gt;</h2>\n<table") and '<p class="caption">a &amp; b</p>' in fragment
+    # the table in a box that scrolls sideways when it is wider than the report's frame
+    assert fragment.startswith('<h2>T&lt;1&gt;</h2>\n<div class="scroll"><table') and '<p class="caption">a &amp; b</p>' in fragment
+    assert "div.scroll { overflow-x: auto;" in tables.HTML_STYLE
     assert [c for tag, _, c in Cells(fragment).cells if tag == "th"] == ["shadowing", "holds", "time"]
     assert "<style" not in fragment and "<script" not in fragment  # the page's head holds the style
     assert td_classes(tables.to_html(verdicts))[1] == ("yes", set())
@@ -457,3 +459,41 @@ def test_agreement_table_means_over_captures_beside_the_paper():
     assert set(none.Pearson) == {tables.MISSING}
     assert verdicts(df[df.method != ""])[
         "The power-spectrum entropy agrees with the entropy Mitsuba's renders give"] == "not run"
+
+
+RUN = {"seed": 3, "objects": ["sphere", "torus"], "real_captures": ["orb"], "capture_envs": ["studio"],
+       "envs": ["studio", "museum"], "render": {"train_views": 24, "test_views": 2, "resolution": 256, "spp": 64},
+       "poses": "gt", "methods": ["freq", "freq_noshadow"], "relight_envs": "held_out"}
+
+
+def test_run_facts_state_the_configuration_with_display_names():
+    facts = tables.run_facts(RUN)
+    assert facts["Objects"].startswith("sphere, torus") and facts["Real captures"] == "orb"
+    assert facts["Methods"] == "Ours (freq), Ours, no shadowing (freq_noshadow)"
+    assert "24 training and 2 test views" in facts["Views"] and "256 x 256 pixels at 64" in facts["Views"]
+    assert "held out" in facts["Relit under"] and facts["Seed"] == "3"
+    listed = dict(RUN, relight_envs=["museum"], real_captures=[])
+    assert tables.run_facts(listed)["Relit under"].startswith("museum,") and tables.run_facts(listed)["Real captures"] == "none"
+
+
+def test_headline_table_means_over_captures_in_registry_order():
+    head = tables.headline_table(full_run({("freq", "mse_average"): 0.07}))
+    assert list(head.method[:3]) == ["spectrum", "freq", "freq_noshadow"]  # registry order, not the rows'
+    assert cell(head, "Parameter MSE", method="freq") == "0.070" and cell(head, "PSNR-H", method="mitsuba") == "26.00"
+    assert cell(head, "Time", method="mitsuba") == "100 s" and cell(head, "Method", method="freq") == METHODS["freq"].label
+    assert cell(head, "PSNR-H", method="rh2001") == tables.MISSING  # not relit in this table
+
+
+def test_run_summary_counts_the_verdicts_and_scopes_its_style():
+    df = full_run({("freq", "mse_average"): 0.5})  # worse than Mitsuba and the spectrum: two claims fail
+    table = claims(df, PAPER)
+    page = tables.run_summary_html(tables.run_facts(RUN), table, tables.headline_table(df))
+    counts = table.holds.value_counts()
+    assert counts.get("no", 0) >= 2
+    assert f"{len(table)} claims: {counts.get('yes', 0)} hold, {counts['no']} do not hold" in page
+    assert td_classes(page).count(("no", {"no"})) == counts["no"]  # the verdicts are coloured
+    assert "Ours, no shadowing (freq_noshadow)" in page and "Headline numbers" in page
+    style = page[page.index("<style>") + 7 : page.index("</style>")]
+    rules = [r for r in style.splitlines() if r.strip()]
+    assert rules and all(r.startswith("div.freqbrdf-summary ") and "body" not in r for r in rules)
+    assert all(part.strip().startswith("div.freqbrdf-summary ") for r in rules for part in r.split("{")[0].split(","))

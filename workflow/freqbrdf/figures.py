@@ -15,8 +15,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .colour import to_srgb, tonemap
-from .metrics import parameter_error_map
+from .metrics import hdr_pair, parameter_error_map, psnr_h
 from .plots import pyplot, save_figure
+from .tables import method_label  # the registry's display names, as the tables print them
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -68,12 +69,14 @@ def capture_maps_figure(
 ) -> dict[str, float]:
     """Ground truth against each method's maps, with our entropy and each method's error.
 
-    One row per SVBRDF (ground truth first), columns base colour (sRGB),
-    roughness, metallic (grey, 0 black to 1 white) and a fourth map: our entropy
-    (Turbo, 0 certain to 1 uncertain) in the ground-truth row, the per-texel
-    squared parameter error (mean of the three groups, observed texels only,
-    one shared scale) in every method's row. Grey: outside the atlas (or, in
-    error maps, never observed).
+    One row per SVBRDF (ground truth first, methods by display name), columns
+    base colour (sRGB), roughness, metallic (grey, 0 black to 1 white), each
+    with its value scale below, and a fourth map: our entropy (Turbo, 0 certain
+    to 1 uncertain) in the ground-truth row, the per-texel squared parameter
+    error (mean of the three groups, one shared scale) in every method's row.
+    Grey: outside the atlas; in the entropy and error maps also never observed
+    (an unobserved texel's entropy is the maximum by definition, and its error
+    is not scored).
 
     Parameters
     ----------
@@ -82,8 +85,8 @@ def capture_maps_figure(
     truth : mapping or None
         Ground-truth ``base_color`` (R, R, 3), ``roughness``, ``metallic`` (R, R);
         None for a real capture (no ground truth: no error maps).
-    estimates : mapping of method to SVBRDF mapping
-        As ``truth``, in display order.
+    estimates : mapping of method name to SVBRDF mapping
+        As ``truth``, in display order; names registered in :mod:`freqbrdf.methods`.
     entropy : ndarray, shape (R, R)
         Normalised entropy in [0, 1].
     inside, seen : ndarray, shape (R, R), bool
@@ -94,31 +97,35 @@ def capture_maps_figure(
     Returns
     -------
     dict
-        Method -> parameter MSE over observed texels (empty without ground truth),
-        the numbers printed in the row labels.
+        Method name -> parameter MSE over observed texels (empty without ground
+        truth), the numbers printed in the row labels.
     """
     plt = pyplot()
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import ListedColormap, Normalize
+
     errors = {m: parameter_error_map(truth, est) for m, est in estimates.items()} if truth is not None else {}
     vmax = error_scale(errors, seen)
     rows = [("ground truth", truth)] + list(estimates.items())
-    fig, axes = plt.subplots(len(rows), 4, figsize=(4 * 2.1, len(rows) * 2.0 + 0.4), squeeze=False,
+    fig, axes = plt.subplots(len(rows), 4, figsize=(4 * 2.1, len(rows) * 1.75 + 0.9), squeeze=False,
                              layout="constrained")
     grey_map = plt.get_cmap("gray").with_extremes(bad=GREY)
     turbo = plt.get_cmap("turbo").with_extremes(bad=GREY)
     magma = plt.get_cmap("magma").with_extremes(bad=GREY)
     mse = {}
     shown_entropy = shown_error = None
-    for r, (label, svbrdf) in enumerate(rows):
+    for r, (name, svbrdf) in enumerate(rows):
         ax_base, ax_rough, ax_metal, ax_extra = axes[r]
         _draw_svbrdf(axes[r][:3], svbrdf, inside, grey_map)
+        label = name if r == 0 else method_label(name)
         if r == 0:
-            shown_entropy = ax_extra.imshow(np.where(inside, entropy, np.nan), cmap=turbo, vmin=0.0, vmax=1.0,
+            shown_entropy = ax_extra.imshow(np.where(seen, entropy, np.nan), cmap=turbo, vmin=0.0, vmax=1.0,
                                             interpolation="nearest")
-        elif label in errors:
-            mse[label] = float(errors[label][seen].mean()) if seen.any() else float("nan")
-            shown_error = ax_extra.imshow(np.where(seen, errors[label], np.nan), cmap=magma, vmin=0.0, vmax=vmax,
+        elif name in errors:
+            mse[name] = float(errors[name][seen].mean()) if seen.any() else float("nan")
+            shown_error = ax_extra.imshow(np.where(seen, errors[name], np.nan), cmap=magma, vmin=0.0, vmax=vmax,
                                           interpolation="nearest")
-            label = f"{label}\nMSE {mse[label]:.3f}"
+            label = f"{label}\nMSE {mse[name]:.3f}"
         else:
             ax_extra.text(0.5, 0.5, "no ground truth", ha="center", va="center", fontsize=8)
         ax_base.set_ylabel(label, fontsize=9)
@@ -129,6 +136,15 @@ def capture_maps_figure(
         ax.set_title(name, fontsize=9)
     if len(rows) > 1 and errors:
         axes[1, 3].set_title("squared error", fontsize=9)
+    # One value scale per parameter column, below it: base colour per channel (linear value,
+    # drawn sRGB-encoded as the maps are), roughness and metallic as drawn.
+    unit = Normalize(0.0, 1.0)
+    base_scale = ListedColormap(np.repeat(to_srgb(np.linspace(0.0, 1.0, 256))[:, None], 3, axis=1))
+    for c, (cmap, label) in enumerate(((base_scale, "base colour, each channel (linear)"),
+                                       (grey_map, "roughness"), (grey_map, "metallic"))):
+        # the space a bar takes is a fraction of its column's height: about one sixth of a row
+        fig.colorbar(ScalarMappable(unit, cmap), ax=axes[:, c].tolist(), location="bottom", shrink=0.9,
+                     aspect=15, fraction=0.15 / len(rows), label=label)
     if shown_entropy is not None:
         fig.colorbar(shown_entropy, ax=axes[0, 3], shrink=0.9, label="entropy")
     if shown_error is not None:
@@ -153,25 +169,39 @@ def _draw_svbrdf(axes, svbrdf: Mapping[str, np.ndarray] | None, inside: np.ndarr
 
 def relight_figure(
     path: str | os.PathLike,
-    references: Mapping[str, np.ndarray],
+    references: Mapping[str, tuple[np.ndarray, np.ndarray]],
     relit: Mapping[str, Mapping[str, np.ndarray]],
-    scores: Mapping[tuple[str, str], float],
     title: str,
-) -> None:
-    """Relit renders beside the ground-truth render, one row per relighting environment.
+    *,
+    clip: float = 4.0,
+    normalise: bool = True,
+) -> dict[tuple[str, str], float]:
+    """Relit renders of one view beside its ground-truth render, each with its PSNR-H,
+    and under each render the squared error that PSNR-H averages.
+
+    Two rows per relighting environment: the renders (tone-mapped alike), then
+    the per-pixel squared difference of the images :func:`freqbrdf.metrics.psnr_h`
+    compares (:func:`freqbrdf.metrics.hdr_pair`; mean of the channels, one
+    scale per environment; grey outside the scored pixels).
 
     Parameters
     ----------
     path : path-like
         PNG destination.
-    references : mapping of relight_env to ndarray, shape (H, W, 3)
-        Ground-truth render of one test view (linear radiance).
-    relit : mapping of relight_env to mapping of method to ndarray, shape (H, W, 3)
+    references : mapping of relight_env to (image, mask)
+        Ground-truth render of the view, ndarray (H, W, 3) of linear radiance,
+        and the pixels scored, ndarray (H, W) of bool.
+    relit : mapping of relight_env to mapping of method name to ndarray, shape (H, W, 3)
         The same view rendered with each method's textures, in display order.
-    scores : mapping of (relight_env, method) to float
-        PSNR-H to print under each render (missing pairs print nothing).
     title : str
         Figure title.
+    clip, normalise
+        As :func:`freqbrdf.metrics.psnr_h` (config ``evaluate.hdr_clip``, ``hdr_normalise``).
+
+    Returns
+    -------
+    dict
+        (relight_env, method) -> PSNR-H of this view, the numbers printed on the renders.
     """
     plt = pyplot()
     methods = list(dict.fromkeys(m for per_env in relit.values() for m in per_env))
@@ -182,29 +212,50 @@ def relight_figure(
         ax.set_axis_off()
         fig.suptitle(title, fontsize=10)
         save_figure(fig, path, dpi=100)
-        return
+        return {}
     cols = 1 + len(methods)
-    fig, axes = plt.subplots(len(envs), cols, figsize=(cols * 1.9, len(envs) * 2.0 + 0.4), squeeze=False,
+    fig, axes = plt.subplots(2 * len(envs), cols, figsize=(cols * 1.9, len(envs) * 3.6 + 0.4), squeeze=False,
                              layout="constrained")
+    magma = plt.get_cmap("magma").with_extremes(bad=GREY)
+    scores = {}
     for r, env in enumerate(envs):
-        axes[r, 0].imshow(tonemap(references[env]))
-        axes[r, 0].set_ylabel(f"relit under\n{env}", fontsize=9)
+        reference, mask = references[env]
+        ax_images, ax_errors = axes[2 * r], axes[2 * r + 1]
+        ax_images[0].imshow(tonemap(reference))
+        ax_images[0].set_ylabel(f"relit under\n{env}", fontsize=9)
+        ax_errors[0].set_axis_off()
+        ax_errors[0].text(0.5, 0.5, "below each render:\nthe squared error\nof the images\nPSNR-H compares",
+                          ha="center", va="center", fontsize=8)
+        errors = {}
         for c, method in enumerate(methods, start=1):
             image = relit.get(env, {}).get(method)
-            if image is None:
-                axes[r, c].text(0.5, 0.5, "not run", ha="center", va="center", fontsize=8)
+            if image is None:  # e.g. a merge, which has seen every capture environment
+                for ax in (ax_images[c], ax_errors[c]):
+                    ax.text(0.5, 0.5, f"not relit\nunder {env}", ha="center", va="center", fontsize=8)
                 continue
-            axes[r, c].imshow(tonemap(image))
-            score = scores.get((env, method))
-            if score is not None and np.isfinite(score):
-                axes[r, c].set_xlabel(f"PSNR-H {score:.2f}", fontsize=8)
+            ax_images[c].imshow(tonemap(image))
+            p, q = hdr_pair(image, reference, mask, clip=clip, normalise=normalise)
+            errors[method] = ((p - q) ** 2).mean(axis=2)
+            scores[env, method] = psnr_h(image, reference, mask, clip=clip, normalise=normalise)
+            ax_images[c].text(0.03, 0.97, f"PSNR-H {scores[env, method]:.2f}", transform=ax_images[c].transAxes,
+                              ha="left", va="top", fontsize=7, color="white",
+                              bbox={"facecolor": "black", "alpha": 0.6, "pad": 1.5, "linewidth": 0})
+        vmax = error_scale(errors, mask)
+        shown = None
+        for c, method in enumerate(methods, start=1):
+            if method in errors:
+                shown = ax_errors[c].imshow(np.where(mask, errors[method], np.nan), cmap=magma, vmin=0.0, vmax=vmax,
+                                            interpolation="nearest")
+        if shown is not None:
+            fig.colorbar(shown, ax=ax_errors[1:].tolist(), shrink=0.8, label="squared error")
     for ax in axes.ravel():
         ax.set_xticks([])
         ax.set_yticks([])
-    for ax, name in zip(axes[0], ("ground truth", *methods)):
+    for ax, name in zip(axes[0], ("ground truth", *(method_label(m) for m in methods))):
         ax.set_title(name, fontsize=9)
     fig.suptitle(title, fontsize=10)
     save_figure(fig, path, dpi=100)
+    return scores
 
 
 def convergence_figure(
@@ -231,9 +282,9 @@ def convergence_figure(
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.0, 3.6), layout="constrained")
     for method, (t, mse) in curves.items():
-        ax.plot(np.maximum(t, 1e-2), mse, marker="o", markersize=3, label=method)
+        ax.plot(np.maximum(t, 1e-2), mse, marker="o", markersize=3, label=method_label(method))
     for method, (t, mse) in points.items():
-        ax.scatter([max(t, 1e-2)], [mse], marker="*", s=90, zorder=3, label=method)
+        ax.scatter([max(t, 1e-2)], [mse], marker="*", s=90, zorder=3, label=method_label(method))
         ax.axhline(mse, color="grey", linewidth=0.5, linestyle=":")
     ax.set_xscale("log")
     ax.set_xlabel("seconds from the capture (2 CPU cores; Mitsuba: optimisation only)")

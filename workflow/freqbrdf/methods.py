@@ -5,7 +5,7 @@ constraints (``rules/common.smk``), the check of ``config methods``
 (:func:`freqbrdf.config.check_config`), the report's tables and the benchmarks
 all read this registry. An entry says which rule estimates the method, what
 its forward model includes, what it starts from, and which row of each of the
-paper's tables it stands beside (Wiersma et al. 2024, Tables 1, 2, 4 and 5).
+paper's tables it stands beside (Wiersma et al. 2024, Tables 1, 2, 4, 5 and 6).
 
 Adding an estimator (README "Adding a method"): one entry here and, if no
 existing rule estimates it, one function and one rule.

@@ -388,6 +388,29 @@ def psnr_h(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, *, clip: float =
     float
         Decibels; ``inf`` when the scaled, clipped images are identical.
     """
+    p, r = hdr_pair(pred, ref, mask, clip=clip, normalise=normalise)
+    return _psnr(_mse(p, r, np.asarray(mask)))
+
+
+def hdr_pair(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, *, clip: float = 4.0,
+             normalise: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The images :func:`psnr_h` compares: steps 1 to 3 of its definition applied to both.
+
+    Parameters
+    ----------
+    pred, ref : ndarray, shape (H, W, 3)
+        Linear radiance, non-negative.
+    mask : ndarray, shape (H, W), bool
+        Object pixels (the exposure and the channel scales are fitted over them).
+    clip, normalise
+        As :func:`psnr_h`.
+
+    Returns
+    -------
+    pred, ref : ndarray, shape (H, W, 3), float64 in [0, clip]
+        Their squared difference, averaged over the masked pixels and the
+        channels, is ``10 ** (-psnr_h / 10)``.
+    """
     p, r, m = _check_images(pred, ref, mask, "psnr_h")
     if not clip > 0:
         raise ValueError(f"psnr_h: clip must be positive, got {clip}")
@@ -398,7 +421,25 @@ def psnr_h(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, *, clip: float =
             gain = to_srgb(linear).sum() / total
             p, r = p * gain, r * gain
     p = p * _channel_scale(p, r, m)
-    return _psnr(_mse(np.clip(p, 0.0, clip), np.clip(r, 0.0, clip), m))
+    return np.clip(p, 0.0, clip), np.clip(r, 0.0, clip)
+
+
+def scored_pixels(coverage: np.ndarray, min_coverage: float) -> np.ndarray:
+    """Pixels of a reference view that the relighting metrics score (config ``evaluate.mask_min_coverage``).
+
+    Parameters
+    ----------
+    coverage : ndarray, shape (H, W)
+        Fraction of the pixel the object covers, in [0, 1] (the capture's mask PNG).
+    min_coverage : float
+        Smallest coverage scored.
+
+    Returns
+    -------
+    ndarray, shape (H, W), bool
+    """
+    # the mask PNG holds coverage in steps of 1/255: a threshold of 1 must keep 255/255
+    return np.asarray(coverage) >= min_coverage - 1e-6
 
 
 def display_pair(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

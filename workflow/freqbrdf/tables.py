@@ -1136,7 +1136,8 @@ def to_html(table: pd.DataFrame, title: str | None = None, caption: str | None =
     content = f"{title}\n{table.to_csv()}"
     uuid = f"{zlib.crc32(content.encode()):08x}"
     parts = [f"<h2>{html.escape(title)}</h2>"] if title else []
-    parts.append(_EMPTY_STYLE.sub("", styler.to_html(table_uuid=uuid)).strip())
+    # A table wider than the report's frame scrolls inside its box instead of being cut off.
+    parts.append(f'<div class="scroll">{_EMPTY_STYLE.sub("", styler.to_html(table_uuid=uuid)).strip()}</div>')
     if caption:
         parts.append(f'<p class="caption">{html.escape(caption)}</p>')
     return "\n".join(parts) + "\n"
@@ -1147,7 +1148,8 @@ body { font-family: sans-serif; font-size: 13px; margin: 1.2em; color: #222; }
 h1 { font-size: 20px; } h2 { font-size: 16px; margin-top: 1.6em; }
 table { border-collapse: collapse; margin: 0.4em 0; }
 th, td { border: 1px solid #ccc; padding: 3px 7px; }
-th, td.num, td.notrun { white-space: nowrap; }
+th { min-width: 4em; } td.num, td.notrun { white-space: nowrap; }
+div.scroll { overflow-x: auto; max-width: 100%; }
 th { background: #eef; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
 td.yes { background: #d8f5d0; } td.no { background: #f8d0d0; } td.notrun { color: #888; }
 p.caption { max-width: 60em; color: #444; }
@@ -1158,6 +1160,100 @@ def html_page(title: str, body: str) -> str:
     """A self-contained HTML page (inline style, no external resources)."""
     return (f"<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{html.escape(title)}</title>"
             f"<style>{HTML_STYLE}</style></head>\n<body>\n<h1>{html.escape(title)}</h1>\n{body}</body></html>\n")
+
+
+def run_facts(run: Mapping[str, object]) -> dict[str, str]:
+    """What a run did, as the report's summary states it: one line per aspect.
+
+    Parameters
+    ----------
+    run : mapping
+        From the run's configuration: ``seed``, ``objects``, ``real_captures``
+        (names), ``capture_envs``, ``envs``, ``relight_envs`` (config
+        ``evaluate.relight_envs``), ``render`` (``train_views``, ``test_views``,
+        ``resolution``, ``spp``), ``poses`` (config ``poses.source``) and ``methods``.
+
+    Returns
+    -------
+    dict of str to str
+        Aspect -> text, in reading order.
+    """
+    render, relight = run["render"], run["relight_envs"]
+    if relight == "held_out":
+        relit = "every environment a capture was not taken under (held out)"
+    else:
+        relit = "every environment" if relight == "all" else ", ".join(relight)
+    return {
+        "Objects": f"{', '.join(run['objects']) or 'none'} (synthetic, seeded ground truth)",
+        "Real captures": ", ".join(run["real_captures"]) or "none",
+        "Captured under": ", ".join(run["capture_envs"]),
+        "Relit under": f"{relit}, of {', '.join(run['envs'])}",
+        "Views": (f"{render['train_views']} training and {render['test_views']} test views per capture, "
+                  f"{render['resolution']} x {render['resolution']} pixels at {render['spp']} samples per pixel"),
+        "Poses": str(run["poses"]),
+        "Methods": ", ".join(f"{method_label(m)} ({m})" for m in run["methods"]),
+        "Seed": str(run["seed"]),
+    }
+
+
+def headline_table(df: pd.DataFrame) -> pd.DataFrame:
+    """The run's headline numbers: one row per method (registry order), means over the captures.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Tidy metrics (:func:`check_tidy`).
+
+    Returns
+    -------
+    DataFrame of str
+        ``Method, method, Parameter MSE, PSNR-H, Time``: average parameter MSE
+        (observed texels), PSNR-H (dB, held-out relighting) and time per capture.
+    """
+    rows = [{"Method": method_label(m), "method": m, "Parameter MSE": fmt(mean_metric(df, m, "mse_average")),
+             "PSNR-H": fmt(mean_metric(df, m, "psnr_h"), 2), "Time": fmt_time(method_time(df, m))}
+            for m in ordered_methods(df.method)]
+    return pd.DataFrame(rows, columns=["Method", "method", "Parameter MSE", "PSNR-H", "Time"])
+
+
+def scoped_style(style: str, scope: str) -> str:
+    """CSS rules with every selector prefixed by ``scope``; rules for ``body`` dropped."""
+    rules = re.findall(r"([^{}]+)\{([^}]*)\}", style)
+    return "\n".join(", ".join(f"{scope} {sel.strip()}" for sel in selectors.split(",")) + f" {{{body}}}"
+                     for selectors, body in rules if selectors.strip() != "body")
+
+
+# The summary sits in the report's own page: its style is scoped to its box.
+RUN_SUMMARY_STYLE = scoped_style(HTML_STYLE, "div.freqbrdf-summary")
+
+
+def run_summary_html(facts: Mapping[str, str], claims_table: pd.DataFrame, headline: pd.DataFrame) -> str:
+    """The report's landing summary as an HTML fragment: what was run, the paper's claims
+    with their verdicts, and the headline numbers.
+
+    Parameters
+    ----------
+    facts : mapping of str to str
+        From :func:`run_facts`.
+    claims_table : DataFrame
+        From :func:`claims` (its ``criterion`` column is left to the claims page).
+    headline : DataFrame
+        From :func:`headline_table`.
+    """
+    counts = claims_table.holds.value_counts()
+    tally = ", ".join(f"{counts.get(v, 0)} {text}" for v, text in (("yes", "hold"), ("no", "do not hold"),
+                                                                   (NOT_RUN, "not run")))
+    lines = "".join(f"<li><b>{html.escape(k)}:</b> {html.escape(v)}</li>" for k, v in facts.items())
+    return (f'<div class="freqbrdf-summary"><style>{RUN_SUMMARY_STYLE}</style>\n'
+            f"<h2>This run</h2>\n<ul>{lines}</ul>\n"
+            + to_html(claims_table[["claim", "holds", "ours", "paper"]], "The paper's claims on this run",
+                      f"{len(claims_table)} claims: {tally}. Criteria and the paper's sources: Tables, claims.",
+                      verdicts="holds")
+            + to_html(headline, "Headline numbers",
+                      "Means over this run's captures: parameter MSE over observed texels, PSNR-H of relighting "
+                      "under held-out environments, time per capture on 2 CPU cores. Every number: "
+                      "Tables, metrics.csv.")
+            + "</div>\n")
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,8 @@ from freqbrdf.cameras import cameras_from_json
 from freqbrdf.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
-from freqbrdf.metrics import base_color_si_scores, brdf_log_rmse
-from freqbrdf.metrics import parameter_error_map, parameter_mse, relight_scores, time_to_reach
+from freqbrdf.metrics import (base_color_si_scores, brdf_log_rmse, parameter_error_map, parameter_mse,
+                             relight_scores, scored_pixels, time_to_reach)
 
 COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
 
@@ -68,7 +68,7 @@ def reference_views(test, min_coverage):
     images, coverage, nonfinite = read_views(test, cameras.names, cameras.width, cameras.height)
     if nonfinite:
         raise ValueError(f"{test}: {nonfinite} NaN/Inf pixel values in the reference views")
-    return cameras.names, list(images), list(coverage >= min_coverage - 1e-6)  # PNG quantisation: 255 / 255
+    return cameras.names, list(images), [scored_pixels(c, min_coverage) for c in coverage]
 
 
 def relight_rows(smk, log):

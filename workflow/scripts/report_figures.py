@@ -9,8 +9,9 @@ import pandas as pd
 from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
 from freqbrdf.brdf import TEXTURES
 from freqbrdf.figures import atlas_masks, capture_maps_figure, convergence_figure, regulariser_figure, relight_figure
-from freqbrdf.io import atomic_path
-from freqbrdf.io import read_exr
+from freqbrdf.cameras import cameras_from_json
+from freqbrdf.io import atomic_path, read_exr, read_json, read_views
+from freqbrdf.metrics import scored_pixels
 from freqbrdf.logs import run_script
 from freqbrdf.observations import band_limited_envmap, sample_equirect
 from freqbrdf.shfit import FIT_OPTIONS, fit_option, mirror_directions, spectrum_log_ratio
@@ -29,27 +30,29 @@ def maps(smk, log):
     log.info("parameter MSE over observed texels: %s", ", ".join(f"{m} {v:.4f}" for m, v in mse.items()))
 
 
-def first_view(directory: Path) -> np.ndarray:
-    """The first test view (by name) of a capture or relit image set."""
-    views = sorted((directory / "images").glob("*.exr"))
-    if not views:
-        raise FileNotFoundError(f"{directory}/images: no EXR views")
-    return read_exr(views[0])
+def first_view(test: Path, min_coverage: float) -> tuple[str, np.ndarray, np.ndarray]:
+    """Name, linear image and scored pixels (as metrics scores them) of a test capture's first view."""
+    cameras = cameras_from_json(read_json(test / "cameras.json"), f"{test}/cameras.json")
+    images, coverage, _ = read_views(test, cameras.names[:1], cameras.width, cameras.height)
+    return cameras.names[0], images[0], scored_pixels(coverage[0], min_coverage)
 
 
 def relight(smk, log):
     w = smk.wildcards
-    metrics = pd.read_csv(smk.input.metrics, keep_default_na=False, na_values=[""])
-    psnr = metrics[(metrics.object == w.object) & (metrics.env == w.env) & (metrics.poses == w.poses)
-                   & (metrics.metric == "psnr_h")]
-    scores = {(r, m): float(v) for r, m, v in zip(psnr.relight_env, psnr.method, psnr.value)}
-    references = {r: first_view(Path(d)) for r, d in zip(smk.params.references, smk.input.references)}
+    settings = smk.params.metrics
+    references, names = {}, {}
+    for relight_env, test in zip(smk.params.references, smk.input.references):
+        names[relight_env], image, mask = first_view(Path(test), settings["mask_min_coverage"])
+        references[relight_env] = (image, mask)
     relit = {}
     for (method, relight_env), directory in zip(smk.params.relights, smk.input.relit):
-        relit.setdefault(relight_env, {})[method] = first_view(Path(directory) / relight_env)
-    relight_figure(smk.output[0], references, relit, scores,
-                   f"{w.object} captured under {w.env}: first test view relit under held-out environments")
-    log.info("relit views of %d method(s) under %s", len({m for m, _ in smk.params.relights}), ", ".join(references))
+        view = Path(directory) / relight_env / "images" / f"{names[relight_env]}.exr"
+        relit.setdefault(relight_env, {})[method] = read_exr(view)
+    scores = relight_figure(smk.output[0], references, relit,
+                            f"{w.object} captured under {w.env}: the first test view relit under held-out environments",
+                            clip=settings["hdr_clip"], normalise=settings["hdr_normalise"])
+    log.info("PSNR-H of the first test view: %s",
+             ", ".join(f"{m} under {r} {v:.2f}" for (r, m), v in scores.items()) or "no relighting")
 
 
 def convergence(smk, log):

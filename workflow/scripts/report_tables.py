@@ -1,11 +1,13 @@
 """Rule tables: the paper's Tables 1 to 6 and the claims table from the tidy metrics,
-as Markdown and LaTeX files, and as HTML pages for the Snakemake report."""
+as Markdown and LaTeX files, and as HTML pages for the Snakemake report; and the
+report's landing summary (what was run, the claims' verdicts, the headline numbers)."""
 
 import pandas as pd
 
 from freqbrdf.io import atomic_path
 from freqbrdf.logs import run_script
-from freqbrdf.tables import check_tidy, html_page, read_paper_results, summaries, to_html, to_latex, to_markdown
+from freqbrdf.tables import (check_tidy, headline_table, html_page, read_paper_results, run_facts, run_summary_html,
+                             summaries, to_html, to_latex, to_markdown)
 
 
 def write_text(path: str, text: str) -> None:
@@ -32,6 +34,7 @@ def main(smk, log):
     claims = next(s for s in tables if s.key == "claims")
     write_text(smk.output.claims_html, html_page("FreqBRDF: the paper's claims, checked",
                                                  to_html(claims.table, None, claims.caption, verdicts="holds")))
+    write_text(smk.output.run_summary, run_summary_html(run_facts(smk.params.run), claims.table, headline_table(metrics)))
     verdicts = claims.table.holds.value_counts().to_dict()
     log.info("claims: %s", ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items())))
 
