@@ -7,12 +7,12 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 CORES ?= 2
 
-.PHONY: run test lint bench clean-results report report-deps
+.PHONY: run test lint bench clean-results report report-deps slurm-test
 
 $(BIN)/.installed: workflow/pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e "./workflow[workflow,test]"
+	$(BIN)/pip install --quiet -e "./workflow[workflow,test,slurm]"
 	touch $@
 
 run: $(BIN)/.installed
@@ -20,6 +20,10 @@ run: $(BIN)/.installed
 
 test: $(BIN)/.installed report-deps lint
 	$(BIN)/python -m pytest -q tests
+
+# The SLURM profile on a single-node cluster started for the test (root; tests/slurm_cluster.sh).
+slurm-test: $(BIN)/.installed
+	$(BIN)/python -m pytest -q tests/test_pipeline.py -k slurm
 
 # Lint and format checks (settings in pyproject.toml at the root); any violation fails.
 lint: $(BIN)/.installed

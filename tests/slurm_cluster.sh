@@ -18,20 +18,20 @@ stop() {
     if [[ -L /etc/slurm/slurm.conf && $(readlink /etc/slurm/slurm.conf) == "$dir/slurm.conf" ]]; then
         rm -f /etc/slurm/slurm.conf
     fi
+    # the pids first: a daemon removes its pid file while it shuts down
+    pids=()
     for name in slurmd slurmctld munged; do
-        if [[ -f "$dir/$name.pid" ]]; then
-            kill "$(cat "$dir/$name.pid")" 2>/dev/null || true
-        fi
+        [[ -f "$dir/$name.pid" ]] && pids+=("$(cat "$dir/$name.pid")")
     done
+    for pid in "${pids[@]}"; do kill "$pid" 2>/dev/null || true; done
     # wait for them to go, so that a next start finds the ports free
-    for _ in $(seq 50); do
+    for _ in $(seq 100); do
         alive=0
-        for name in slurmd slurmctld munged; do
-            [[ -f "$dir/$name.pid" ]] && kill -0 "$(cat "$dir/$name.pid")" 2>/dev/null && alive=1
-        done
+        for pid in "${pids[@]}"; do kill -0 "$pid" 2>/dev/null && alive=1; done
         [[ $alive == 0 ]] && break
         sleep 0.2
     done
+    for pid in "${pids[@]}"; do kill -9 "$pid" 2>/dev/null || true; done
     rm -f "$dir"/*.pid
 }
 

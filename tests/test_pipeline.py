@@ -597,7 +597,25 @@ def test_a_wrongly_oriented_map_is_reported_with_the_best_rotation(repo, orb):
 
 
 TIMING_METRICS = ("time_s", "time_total_s", "max_rss_mb", "speed_ratio_vs_mitsuba", "speed_ratio_equal_accuracy",
-                  "mitsuba_time_to_match_s", "mitsuba_reached")
+                  "mitsuba_time_to_match_s", "mitsuba_reached", "entropy_agreement_time_mitsuba_s",
+                  "entropy_agreement_time_angular_s", "entropy_agreement_time_spectrum_s")
+
+
+def comparable_metrics(workdir):
+    """metrics.csv of a run without its timing rows, in a fixed order ('' for a capture's own rows)."""
+    import pandas as pd
+
+    table = pd.read_csv(workdir / "results/tables/metrics.csv", keep_default_na=False, na_values=[""])
+    table[["method", "relight_env"]] = table[["method", "relight_env"]].fillna("")
+    table = table[~table.metric.isin(TIMING_METRICS)]
+    return table.sort_values(["object", "env", "poses", "method", "relight_env", "metric"]).reset_index(drop=True)
+
+
+def through_mitsuba(method):
+    """Whether differentiable rendering produced the method's textures (Dr.Jit's atomics: not bit-reproducible)."""
+    entry = METHODS.get(method)
+    return entry is not None and (entry.rule == "mitsuba_svbrdf" or
+                                  (entry.start is not None and through_mitsuba(entry.start)))
 
 
 def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
@@ -619,16 +637,7 @@ def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr[-4000:]
 
-    def numbers(workdir):
-        table = pd.read_csv(workdir / "results/tables/metrics.csv")
-        table = table[~table.metric.isin(TIMING_METRICS)]
-        return table.sort_values(["object", "env", "poses", "method", "relight_env", "metric"]).reset_index(drop=True)
-
-    def through_mitsuba(method):
-        entry = METHODS[method]
-        return entry.rule == "mitsuba_svbrdf" or (entry.start is not None and through_mitsuba(entry.start))
-
-    ours, theirs = numbers(run), numbers(tmp_path)
+    ours, theirs = comparable_metrics(run), comparable_metrics(tmp_path)
     assert len(theirs) > 100 and (theirs.method == ours.method).all()
     # Dr.Jit sums the differentiable renderer's gradients with atomics across threads, so the
     # methods it optimises differ slightly from run to run (README, "Differentiable-rendering
@@ -637,3 +646,48 @@ def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
     loose = ours.method.map(through_mitsuba).to_numpy()
     for part, tol in ((~loose, 1e-9), (loose, 1e-2)):
         pd.testing.assert_frame_equal(theirs[part], ours[part], check_exact=False, rtol=tol, atol=tol)
+
+
+# The SLURM run's jobs, bundled by stage into three SLURM jobs: each stage hands its files
+# to the next through the shared working directory, and the run stays short.
+SLURM_STAGES = {
+    "prep": ["build_env", "build_object", "render_capture", "export_capture", "import_capture", "env_orientation"],
+    "estimate": ["extract_observations", "fit_sh", "spectrum_search", "optimise_svbrdf", "merge_svbrdf"],
+    "evaluate": ["relight", "metrics"],
+}
+
+
+@pytest.fixture(scope="module")
+def slurm_cluster(repo, tmp_path_factory):
+    """A single-node SLURM cluster (tests/slurm_cluster.sh), stopped afterwards."""
+    directory = tmp_path_factory.mktemp("slurm")
+    script = str(repo / "tests" / "slurm_cluster.sh")
+    started = subprocess.run(["bash", script, "start", str(directory)], capture_output=True, text=True, timeout=600)
+    if started.returncode != 0:
+        pytest.fail(f"could not start the SLURM test cluster: {started.stderr.strip() or started.stdout.strip()}")
+    yield directory
+    subprocess.run(["bash", script, "stop", str(directory)], capture_output=True, text=True, timeout=120)
+
+
+def test_the_slurm_profile_scores_the_tiny_benchmark_as_a_local_run(repo, run, slurm_cluster, tmp_path):
+    """profiles/slurm on a real SLURM daemon: the frequency-domain methods' metrics equal the
+    local run's bit for bit (Mitsuba's methods are left out: not bit-reproducible)."""
+    import pandas as pd
+    import yaml
+
+    slim = tmp_path / "slurm.yaml"
+    slim.write_text(yaml.safe_dump({"methods": ["spectrum", "freq"], "evaluate": {"views_counts": []},
+                                    "entropy_agreement": {"captures": 0}, "view_selection": {"sweep_counts": []}}))
+    groups = [f"{rule}={stage}" for stage, rules in SLURM_STAGES.items() for rule in rules]
+    workdir = tmp_path / "run"
+    done = snakemake(repo, workdir, "results/tables/metrics.csv", "--profile", str(repo / "profiles" / "slurm"),
+              "--slurm-status-command", "squeue", "--slurm-init-seconds-before-status-checks", "2",
+              "--groups", *groups, "--group-components", *(f"{stage}=1000" for stage in SLURM_STAGES),
+              "--resources", "mem_mb=16000", extra_config=[slim])
+    submitted = re.findall(r"has been submitted with SLURM jobid (\d+)", done.stdout + done.stderr)
+    assert len(set(submitted)) >= len(SLURM_STAGES)  # every stage went through sbatch
+    theirs = comparable_metrics(workdir)
+    ours = comparable_metrics(run)
+    ours = ours.merge(theirs[["object", "env", "poses", "method", "relight_env", "metric"]])
+    assert len(theirs) > 30 and len(ours) == len(theirs)
+    pd.testing.assert_frame_equal(theirs, ours, check_exact=False, rtol=1e-9, atol=1e-9)
