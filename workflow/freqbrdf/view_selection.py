@@ -43,6 +43,7 @@ import pandas as pd
 
 from .artefacts import Observations
 from .cameras import Cameras
+from .kernels import set_threads  # numba's thread count is per process: one setter for every kernel
 from .observations import view_geometry
 from .sh import n_coeffs, real_sh, sh_degrees
 from .shfit import mirror_directions, regulariser_diagonal
@@ -58,11 +59,6 @@ _P_MIN = 1e-9  # hypotheses less likely than this are skipped: error <= n_grid *
 _X_MIN = -40.0  # exp(-40) = 4e-18: such grid points add nothing to a row's sums
 _ROWS = 16  # rows of the expected-entropy kernel per parallel iteration
 _CHUNK_VALUES = 1 << 20  # float64 values of one texel chunk's (texel, view, coefficient) arrays
-
-
-def set_threads(workers: int) -> None:
-    """Use ``workers`` threads in the expected-entropy kernel."""
-    numba.set_num_threads(max(1, min(int(workers), numba.config.NUMBA_NUM_THREADS)))
 
 
 # --------------------------------------------------------------------------
