@@ -28,6 +28,7 @@ rule render_capture:
         # does not rerun the training renders.
         render={key: config["render"][key] for key in RENDER_KEYS},
         views=lambda wildcards: config["render"][f"{wildcards.split}_views"],
+        scene=scene_settings,
         azimuth_deg=lambda wildcards: 0.0 if wildcards.split == "train" else config["render"]["test_azimuth_deg"],
         seed=lambda wildcards: derived_seed(config["seed"], "render", wildcards.object, wildcards.env, wildcards.split),
     script:

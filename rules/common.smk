@@ -10,15 +10,48 @@ from freqbrdf.methods import FREQUENCY_RULES, METHODS as METHOD_REGISTRY, method
 
 SYNTHETIC_OBJECTS = list(config["objects"])
 REAL_CAPTURES = config["real_captures"]  # name -> {dir, env, up_axis, ...}: captures imported from disk
-OBJECTS = SYNTHETIC_OBJECTS + list(REAL_CAPTURES)
+# name -> {object, env, model, clearcoat, occluder, roughness, metallic}: synthetic captures that
+# break the model's assumptions (config/stress.yaml), each an object of its own under one env.
+STRESS = config["stress_captures"]
+TRUTH_OBJECTS = SYNTHETIC_OBJECTS + list(STRESS)  # objects with ground-truth textures
+OBJECTS = TRUTH_OBJECTS + list(REAL_CAPTURES)
 ENVS = list(config["envs"])
 CAPTURE_ENVS = list(config["capture_envs"])
 SPLITS = ["train", "test"]
 POSES = config["poses"]["source"]
+POSE_COMPARE = [p for p in config["poses"]["compare"] if p != POSES]  # further sources scored on the benchmark
 METHODS = list(config["methods"])  # names in freqbrdf.methods.METHODS (checked by check_config)
 # Every (object, env) pair that has a training capture; synthetic ones have ground truth.
-SYNTHETIC_CAPTURES = [(o, e) for o in SYNTHETIC_OBJECTS for e in CAPTURE_ENVS]
+# The benchmark's captures make the paper's tables; the stress captures their own (rules/stress.smk).
+BENCHMARK_CAPTURES = [(o, e) for o in SYNTHETIC_OBJECTS for e in CAPTURE_ENVS]
+STRESS_CAPTURES = [(name, capture["env"]) for name, capture in STRESS.items()]
+SYNTHETIC_CAPTURES = BENCHMARK_CAPTURES + STRESS_CAPTURES
 CAPTURES = SYNTHETIC_CAPTURES + [(name, capture["env"]) for name, capture in REAL_CAPTURES.items()]
+# (object, env, poses) of every synthetic capture metrics.csv scores: each under the run's
+# pose source, and the benchmark's also under each of poses.compare.
+SCORED = [(o, e, POSES) for o, e in SYNTHETIC_CAPTURES] + [
+    (o, e, p) for p in POSE_COMPARE for o, e in BENCHMARK_CAPTURES
+]
+
+
+def object_shape(name):
+    """The procedural shape of a synthetic object: its own name, or a stress capture's base object."""
+    return STRESS[name]["object"] if name in STRESS else name
+
+
+def stress_material(name):
+    """Uniform texture values of a stress capture's object ({} for the benchmark's objects)."""
+    return {key: STRESS[name][key] for key in ("roughness", "metallic") if key in STRESS.get(name, {})}
+
+
+def scene_settings(wildcards):
+    """How a capture is rendered beyond its textures: the BSDF model, clear coat, and an
+    occluder in the training views only (the test views measure the material, not the occluder)."""
+    capture = STRESS.get(wildcards.object, {})
+    settings = {key: capture[key] for key in ("model", "clearcoat", "clearcoat_gloss") if key in capture}
+    if wildcards.split == "train" and "occluder" in capture:
+        settings["occluder"] = capture["occluder"]
+    return settings
 
 
 def relight_envs(env, method):
@@ -35,7 +68,7 @@ def relight_envs(env, method):
 # Every relit image set (object, env, poses, method, relight_env): synthetic captures
 # only; a real capture's test views are relit under their own maps (rule relight_real).
 # Rule relight writes those of one estimate into one directory, relit_dir(...)/{relight_env}.
-RELIGHTS = [(o, e, POSES, m, r) for o, e in SYNTHETIC_CAPTURES for m in METHODS for r in relight_envs(e, m)]
+RELIGHTS = [(o, e, p, m, r) for o, e, p in SCORED for m in METHODS for r in relight_envs(e, m)]
 
 
 def relit_dir(o, e, p, m):
@@ -128,11 +161,11 @@ def pose_dir(wildcards):
 def final_outputs():
     """Every final output of the workflow (the targets of rule all)."""
     outputs = []
-    for name in SYNTHETIC_OBJECTS:
+    for name in TRUTH_OBJECTS:
         outputs += list(object_files(name).values())
     outputs += expand("results/envs/{env}_spectrum.png", env=ENVS)
     outputs.append("results/envs/spectra.png")
-    outputs += expand("results/captures/{object}/{env}/train", object=SYNTHETIC_OBJECTS, env=CAPTURE_ENVS)
+    outputs += [f"results/captures/{o}/{e}/train" for o, e in SYNTHETIC_CAPTURES]
     outputs += expand("results/captures/{object}/{env}/test", object=SYNTHETIC_OBJECTS, env=ENVS)
     if config["poses"]["evaluate_colmap"]:
         outputs.append("results/tables/pose_errors.tsv")
@@ -145,6 +178,7 @@ def final_outputs():
     outputs += report_outputs()  # rules/report.smk: tables, claims, per-capture figures
     outputs += gltf_outputs()  # rules/export.smk: .glb files, .hdr environments, viewer pages
     outputs += view_selection_outputs()  # rules/view_selection.smk
+    outputs += stress_outputs()  # rules/stress.smk
     return outputs
 
 
@@ -204,10 +238,18 @@ def view_selection_outputs():
     return outputs
 
 
+# ---- input functions and targets of rules/stress.smk
+def stress_outputs():
+    """The stress page and figure when the config has stress captures or compared pose sources."""
+    if not (STRESS or POSE_COMPARE):
+        return []
+    return ["results/tables/stress.md", "results/tables/stress.html", "results/figures/stress.png"]
+
+
 # ---- input functions and targets of rules/export.smk
 def gltf_outputs():
     """Every .glb, .hdr and viewer page the export rules write (targets of rule all)."""
-    outputs = [f"results/gltf/{o}/{TRUTH_GLTF}.glb" for o in SYNTHETIC_OBJECTS]
+    outputs = [f"results/gltf/{o}/{TRUTH_GLTF}.glb" for o in TRUTH_OBJECTS]
     outputs += [f"results/gltf/{o}/{e}/{POSES}/{m}.glb" for o, e in CAPTURES for m in METHODS]
     outputs += expand("results/envs/{env}.hdr", env=ENVS)
     outputs += [f"results/viewer/{o}/{e}/{POSES}/viewer.html" for o, e in CAPTURES]

@@ -1,6 +1,6 @@
 # Entropy agreement (paper Table 3) on the first synthetic captures
 # (config entropy_agreement.captures; none when 0).
-AGREEMENT_CAPTURES = SYNTHETIC_CAPTURES[: config["entropy_agreement"]["captures"]]
+AGREEMENT_CAPTURES = BENCHMARK_CAPTURES[: config["entropy_agreement"]["captures"]]
 
 
 rule entropy_agreement:

@@ -2,9 +2,9 @@
 # Only the metrics rule receives them, so editing one reruns nothing upstream.
 METRIC_KEYS = ["mask_min_coverage", "hdr_clip", "hdr_normalise"]
 # What the metrics rule scores; its input lists follow these orders.
-METRIC_ESTIMATES = [(o, e, POSES, m) for o, e in SYNTHETIC_CAPTURES for m in METHODS]
+METRIC_ESTIMATES = [(o, e, p, m) for o, e, p in SCORED for m in METHODS]
 METRIC_REFERENCES = sorted({(o, r) for o, _, _, _, r in RELIGHTS})
-METRIC_TIMINGS = [(o, e, POSES, m) for o, e in CAPTURES for m in METHODS]
+METRIC_TIMINGS = METRIC_ESTIMATES + [(o, c["env"], POSES, m) for o, c in REAL_CAPTURES.items() for m in METHODS]
 
 
 rule metrics:
@@ -13,13 +13,13 @@ rule metrics:
     Each input list is in the order of the params entry of the same name."""
     input:
         estimates=[f"results/estimates/{o}/{e}/{p}/{m}" for o, e, p, m in METRIC_ESTIMATES],
-        truth=[object_files(o)[name] for o in SYNTHETIC_OBJECTS for name in TEXTURES],
-        observations=[f"results/observations/{o}/{e}/{POSES}" for o, e in SYNTHETIC_CAPTURES],
-        entropy=[f"results/entropy/{o}/{e}/{POSES}" for o, e in SYNTHETIC_CAPTURES],
+        truth=[object_files(o)[name] for o in TRUTH_OBJECTS for name in TEXTURES],
+        observations=[f"results/observations/{o}/{e}/{p}" for o, e, p in SCORED],
+        entropy=[f"results/entropy/{o}/{e}/{p}" for o, e, p in SCORED],
         relit=[relit_dir(o, e, p, m) for o, e, p, m, _ in RELIGHTS],  # each holds {relight_env}/
         references=[f"results/captures/{o}/{r}/test" for o, r in METRIC_REFERENCES],
         benchmarks=[f for o, e, p, m in METRIC_TIMINGS for f in method_benchmarks(o, e, p, m)],
-        extraction=[f"results/benchmarks/extract_observations/{o}_{e}_{POSES}.tsv" for o, e in SYNTHETIC_CAPTURES],
+        extraction=[f"results/benchmarks/extract_observations/{o}_{e}_{p}.tsv" for o, e, p in SCORED],
         views=[f"results/views/{o}/{e}/{POSES}/views.tsv" for o, e in VIEWS_CAPTURES],
         agreement=[f"results/entropy_agreement/{o}/{e}/{POSES}/agreement.json" for o, e in AGREEMENT_CAPTURES],
         code=library("metrics"),
@@ -43,8 +43,8 @@ rule metrics:
     params:
         metrics={key: config["evaluate"][key] for key in METRIC_KEYS},
         synthetic=METRIC_ESTIMATES,
-        objects=SYNTHETIC_OBJECTS,
-        captures=[(o, e, POSES) for o, e in SYNTHETIC_CAPTURES],
+        objects=TRUTH_OBJECTS,
+        captures=SCORED,
         entropy_methods=[m for m in METHODS if METHOD_REGISTRY[m].entropy_scored],
         relights=RELIGHTS,
         references=METRIC_REFERENCES,

@@ -1,5 +1,6 @@
 rule build_object:
-    """Procedural mesh with a UV atlas and its seeded ground-truth SVBRDF."""
+    """Procedural mesh with a UV atlas and its seeded ground-truth SVBRDF; a stress
+    capture's object is its base object, optionally with a uniform roughness or metallic."""
     input:
         code=library("make_object"),
     output:
@@ -17,6 +18,8 @@ rule build_object:
     params:
         detail=config["meshes"]["detail"],
         textures=config["textures"],
-        seed=lambda wildcards: derived_seed(config["seed"], "object", wildcards.object),
+        shape=lambda wildcards: object_shape(wildcards.object),
+        seed=lambda wildcards: derived_seed(config["seed"], "object", object_shape(wildcards.object)),
+        material=lambda wildcards: stress_material(wildcards.object),
     script:
         "../workflow/scripts/make_object.py"

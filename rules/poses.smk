@@ -32,7 +32,7 @@ rule colmap_poses:
 rule pose_errors:
     """Registered views and median pose errors of SfM on every synthetic capture, one row each."""
     input:
-        poses=[f"results/poses/{o}/{e}/colmap" for o, e in SYNTHETIC_CAPTURES],
+        poses=[f"results/poses/{o}/{e}/colmap" for o, e in BENCHMARK_CAPTURES],
         code=library("pose_errors"),
     output:
         "results/tables/pose_errors.tsv",
@@ -44,6 +44,6 @@ rule pose_errors:
         mem_mb=memory(500),
         runtime=minutes(1),
     params:
-        captures=SYNTHETIC_CAPTURES,
+        captures=BENCHMARK_CAPTURES,
     script:
         "../workflow/scripts/pose_errors.py"

@@ -42,6 +42,7 @@ rule tables:
         runtime=minutes(1),
     params:
         poses=POSES,
+        stress=list(STRESS),
         # Which of the paper's environments each of ours stands beside (Table 2).
         env_kinds={env: config["envs"][env]["kind"] for env in ENVS},
         # what the report's landing summary says was run (freqbrdf.tables.run_facts)

@@ -2,8 +2,8 @@
 # of candidate poses for the first synthetic capture, and the comparison with random and
 # evenly spread views on every synthetic capture (config view_selection.sweep_counts;
 # none when the list is empty).
-VIEW_SELECTION_CAPTURES = SYNTHETIC_CAPTURES[:1]
-VIEW_SELECTION_SWEEP_CAPTURES = SYNTHETIC_CAPTURES if config["view_selection"]["sweep_counts"] else []
+VIEW_SELECTION_CAPTURES = BENCHMARK_CAPTURES[:1]
+VIEW_SELECTION_SWEEP_CAPTURES = BENCHMARK_CAPTURES if config["view_selection"]["sweep_counts"] else []
 VIEW_SELECTION_SWEEP_KEYS = ["texels", "posterior_min_views", "sweep_counts"]
 
 

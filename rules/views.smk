@@ -1,6 +1,6 @@
 # Parameter MSE and entropy with fewer training views (paper Fig. 8), on the first
 # synthetic capture (config evaluate.views_counts; none when the list is empty).
-VIEWS_CAPTURES = SYNTHETIC_CAPTURES[:1] if config["evaluate"]["views_counts"] else []
+VIEWS_CAPTURES = BENCHMARK_CAPTURES[:1] if config["evaluate"]["views_counts"] else []
 
 
 rule views_sweep:

@@ -21,7 +21,7 @@ def default(repo):
     return yaml.safe_load((repo / "config" / "config.yaml").read_text())
 
 
-@pytest.mark.parametrize("preset", ["paper.yaml", "tiny.yaml", "tuning.yaml"])
+@pytest.mark.parametrize("preset", ["paper.yaml", "tiny.yaml", "tuning.yaml", "stress.yaml"])
 def test_shipped_configs_validate(repo, schema, default, preset):
     check_config(copy.deepcopy(default), schema)
     merged = copy.deepcopy(default)
@@ -53,6 +53,20 @@ def test_shipped_configs_validate(repo, schema, default, preset):
          r"config key real_captures\.pot\.up_axis: 'x' is not one of \['y', 'z'\]"),
         (lambda c: c.update(real_captures={"pot": {"dir": "x", "env": "e", "camera": "vulkan"}}),
          r"config key real_captures\.pot\.camera: 'vulkan' is not one of"),
+        (lambda c: c.update(stress_captures={"odd": {"object": "sphere", "env": "beach"}}),
+         r"config key stress_captures\.odd\.env: 'beach' not defined under envs"),
+        (lambda c: c.update(stress_captures={"torus": {"object": "sphere", "env": "studio"}}),
+         r"config key stress_captures\.torus: the name is taken"),
+        (lambda c: c.update(stress_captures={"odd": {"object": "sphere", "env": "studio", "pair": "odd"}}),
+         r"config key stress_captures\.odd\.pair: 'odd' is not another stress capture"),
+        (lambda c: c.update(stress_captures={"odd": {"object": "sphere", "env": "studio", "model": "beckmann_blend",
+                                                     "clearcoat": 0.5}}),
+         r"config key stress_captures\.odd\.clearcoat: needs model principled"),
+        (lambda c: c.update(stress_captures={"odd": {"object": "sphere", "env": "studio",
+                                                     "occluder": {"height": -0.5, "radius": 2}}}),
+         r"config key stress_captures\.odd\.occluder\.height: -0\.5 is greater than the maximum of -1"),
+        (lambda c: c["envs"]["studio"].update(blur=-1), r"config key envs\.studio\.blur: -1 is less than the minimum"),
+        (lambda c: c["poses"].update(compare=["sfm"]), r"config key poses\.compare\.0: 'sfm' is not one of"),
     ],
 )
 def test_mistakes_give_one_line_naming_the_key(schema, default, edit, message):

@@ -6,8 +6,10 @@ import pytest
 from freqbrdf.cameras import Cameras, hemisphere_rig, intrinsics, look_at, mitsuba_to_world, project
 from freqbrdf.meshes import make_mesh, write_ply
 from freqbrdf.render import (
+    capture_bsdf,
     eval_environment,
     capture_scene,
+    occluder_disk,
     mask_scene,
     principled_bsdf,
     relit_views,
@@ -166,3 +168,77 @@ def test_relit_views_reproduce_the_reference_render_of_the_same_textures_and_see
     for ref, same, noisy in zip(reference, relit, other):
         np.testing.assert_array_equal(same, ref)
         assert np.abs(noisy - ref).max() > 1e-3
+
+
+def _eval_bsdf(mi, bsdf_dict, wo):
+    """Mitsuba's BSDF value (times cos theta_o) for light from ``wo`` seen along the normal, at uv (0.5, 0.5)."""
+    import drjit as dr
+
+    bsdf = mi.load_dict(bsdf_dict)
+    si = dr.zeros(mi.SurfaceInteraction3f)
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+    si.wi = mi.Vector3f(0, 0, 1)
+    si.uv = mi.Point2f(0.5, 0.5)
+    return np.array(bsdf.eval(mi.BSDFContext(), si, mi.Vector3f(*map(float, wo)))).ravel()
+
+
+@pytest.mark.parametrize("distribution", ["ggx", "beckmann"])
+def test_blend_metal_peak_matches_the_microfacet_normalisation(mi, distribution):
+    # At normal incidence and reflection the half vector is the normal, where both
+    # distributions have D = 1 / (pi alpha^2); G = 1 and F = 1 (no Fresnel), so f cos = base / (4 pi alpha^2).
+    roughness, base = 0.5, np.array([0.9, 0.5, 0.2])
+    textures = dict(base_color=np.broadcast_to(base, (4, 4, 3)).copy(), roughness=np.full((4, 4), roughness),
+                    metallic=np.ones((4, 4)))
+    value = _eval_bsdf(mi, capture_bsdf(mi, textures, f"{distribution}_blend"), (0.0, 0.0, 1.0))
+    np.testing.assert_allclose(value, base / (4 * np.pi * roughness**4), rtol=1e-3)
+
+
+def test_beckmann_and_ggx_blends_differ_as_their_distributions_do(mi):
+    # Off the peak (half vector 15 degrees from the normal) the two lobes differ by the
+    # ratio of their normal distributions; shadowing is within 1% of 1 at these angles.
+    alpha, theta_h = 0.3, np.radians(15.0)
+    textures = dict(base_color=np.ones((4, 4, 3)), roughness=np.full((4, 4), np.sqrt(alpha)), metallic=np.ones((4, 4)))
+    wo = (np.sin(2 * theta_h), 0.0, np.cos(2 * theta_h))
+    ggx = _eval_bsdf(mi, capture_bsdf(mi, textures, "ggx_blend"), wo)[0]
+    beckmann = _eval_bsdf(mi, capture_bsdf(mi, textures, "beckmann_blend"), wo)[0]
+    t2, c4 = np.tan(theta_h) ** 2, np.cos(theta_h) ** 4
+    d_ggx = alpha**2 / (np.pi * c4 * (alpha**2 + t2) ** 2)
+    d_beckmann = np.exp(-t2 / alpha**2) / (np.pi * alpha**2 * c4)
+    assert beckmann / ggx == pytest.approx(d_beckmann / d_ggx, rel=0.02)
+    assert d_beckmann / d_ggx > 1.3  # a visible mismatch, not a rounding difference
+
+
+def test_capture_bsdf_rejects_unknown_models_and_a_clear_coat_on_a_blend(mi):
+    textures = dict(base_color=np.ones((4, 4, 3)), roughness=np.full((4, 4), 0.5), metallic=np.zeros((4, 4)))
+    with pytest.raises(ValueError, match="phong"):
+        capture_bsdf(mi, textures, "phong")
+    with pytest.raises(ValueError, match="clear coat"):
+        capture_bsdf(mi, textures, "beckmann_blend", clearcoat=0.5)
+    assert capture_bsdf(mi, textures, "principled", clearcoat=0.5)["clearcoat"] == 0.5
+
+
+def test_occluder_disk_darkens_a_white_sphere_by_the_light_it_blocks(mi, sphere_ply):
+    # Under unit radiance a convex white Lambertian point reflects 1 minus the cosine-weighted
+    # share of its sky the disk hides: blocked_light, computed independently of Mitsuba.
+    from freqbrdf.stress import blocked_light
+
+    white = {"type": "diffuse", "reflectance": {"type": "rgb", "value": 1.0}}
+    env = np.ones((32, 64, 3), np.float32)
+    height, radius = -1.3, 1.5
+    eye = np.array([0.0, -0.5, 4.0])
+    w2c = look_at(eye)
+    scene = capture_scene(mi, sphere_ply, white, env, width=SIZE, height=SIZE, fov_x_deg=FOV, spp=256, max_depth=8,
+                          occluders=[occluder_disk(mi, height, radius)])
+    image = _render(mi, scene, w2c)[..., 0]
+    coverage = _render(mi, mask_scene(mi, sphere_ply, width=SIZE, height=SIZE, fov_x_deg=FOV, spp=16), w2c)[..., 0]
+    # Where each pixel centre's ray meets the unit sphere (its normal too).
+    rows, cols = np.nonzero(coverage > 0.999)
+    rays = np.linalg.inv(intrinsics(SIZE, SIZE, FOV)) @ np.stack([cols + 0.5, rows + 0.5, np.ones(len(rows))])
+    dirs = (w2c[:3, :3].T @ rays).T
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    b = dirs @ eye
+    points = eye + (-b - np.sqrt(b**2 - (eye @ eye - 1.0)))[:, None] * dirs
+    expected = 1.0 - blocked_light(points, points, env, height, radius, directions=8192)
+    assert expected.min() < 0.6  # the disk shadows part of what the camera sees
+    assert np.median(np.abs(image[rows, cols] - expected)) < 0.02
+    assert np.percentile(np.abs(image[rows, cols] - expected), 90) < 0.06

@@ -83,6 +83,18 @@ def check_config(config: dict[str, Any], schema: str | Path) -> None:
             raise ConfigError(f"config key real_captures.{name}: the name is taken by a synthetic object")
         if capture["env"] in config["envs"]:
             raise ConfigError(f"config key real_captures.{name}.env: {capture['env']!r} is taken by a synthetic environment")
+    for name, capture in config["stress_captures"].items():
+        if name in CATALOGUE or name in config["real_captures"]:
+            raise ConfigError(f"config key stress_captures.{name}: the name is taken by an object or a real capture")
+        if capture["env"] not in config["envs"]:
+            raise ConfigError(f"config key stress_captures.{name}.env: {capture['env']!r} not defined under envs "
+                              f"(defined: {sorted(config['envs'])})")
+        pair = capture.get("pair")
+        if pair is not None and (pair not in config["stress_captures"] or pair == name):
+            raise ConfigError(f"config key stress_captures.{name}.pair: {pair!r} is not another stress capture")
+        if capture.get("clearcoat", 0.0) > 0.0 and capture.get("model", "principled") != "principled":
+            raise ConfigError(f"config key stress_captures.{name}.clearcoat: needs model principled, "
+                              f"not {capture['model']!r}")
     render = config["render"]
     half_span = math.degrees(math.asin(1.0 / render["camera_distance"]))
     if half_span >= render["fov_deg"] / 2.0:

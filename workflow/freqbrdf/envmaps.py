@@ -23,7 +23,8 @@ from collections.abc import Callable
 import numpy as np
 
 from .colour import LUMINANCE
-from .sh import angles_to_directions, equirect_directions, equirect_solid_angles, power_spectrum, project_equirect
+from .sh import (angles_to_directions, equirect_directions, equirect_solid_angles, filter_equirect, power_spectrum,
+                 project_equirect)
 
 ENV_KINDS = ("studio", "museum", "sunny", "overcast")
 
@@ -120,7 +121,8 @@ def add_ground(sky: np.ndarray, albedo: float, horizon_blur_deg: float) -> np.nd
     return t * sky_at_horizon + (1.0 - t) * ground[None, None, :]
 
 
-def studio(height: int, seed: int, lights: int = 3, light_radius_deg: float = 22.0, light_radiance: float = 8.0) -> np.ndarray:
+def studio(height: int, seed: int, lights: int = 3, light_radius_deg: float = 22.0, light_radiance: float = 8.0,
+           light_elevation_deg: tuple[float, float] = (15.0, 60.0)) -> np.ndarray:
     """Indoor studio: a dim room lit by a few large soft lights.
 
     Parameters
@@ -135,6 +137,9 @@ def studio(height: int, seed: int, lights: int = 3, light_radius_deg: float = 22
         Mean angular radius of a light in degrees (each varies by +-30%).
     light_radiance : float
         Radiance of a light relative to the room (before normalisation).
+    light_elevation_deg : (float, float)
+        Range the lights' elevations are drawn from, degrees above the horizon
+        (negative: below it, lighting the object from underneath).
 
     Returns
     -------
@@ -148,7 +153,7 @@ def studio(height: int, seed: int, lights: int = 3, light_radius_deg: float = 22
     env = room.copy()
     azimuths = rng.uniform(0.0, 360.0) + np.arange(lights) * 360.0 / lights + rng.uniform(-25.0, 25.0, lights)
     for az in azimuths:
-        centre = direction_from_angles(rng.uniform(15.0, 60.0), az)
+        centre = direction_from_angles(rng.uniform(*light_elevation_deg), az)
         radius = light_radius_deg * rng.uniform(0.7, 1.3)
         tint = 1.0 + rng.uniform(-0.08, 0.08, 3)
         env += light_radiance * rng.uniform(0.5, 1.0) * soft_disc(dirs, centre, radius, edge=0.6)[..., None] * tint
@@ -243,6 +248,36 @@ def overcast(height: int, ground_albedo: float = 0.25, horizon_blur_deg: float =
     dirs = equirect_directions(height, 2 * height)
     sky = ((1.0 + 2.0 * np.maximum(dirs[..., 1], 0.0)) / 3.0)[..., None] * np.array([0.95, 0.98, 1.0])
     return add_ground(sky, ground_albedo, horizon_blur_deg)
+
+
+def blur(envmap: np.ndarray, width: float) -> np.ndarray:
+    """The map convolved with a zonal kernel whose SH degree ``l`` has gain ``exp(-(width l)^2)``.
+
+    It is the low-pass filter by which a GGX lobe of ``alpha = width`` acts on the
+    light in the paper's model (section 3.2): a surface of roughness alpha_1 under
+    the blurred map reflects, to that model, what one of alpha_2 = sqrt(alpha_1^2
+    + width^2) reflects under the sharp map (the light/material ambiguity).
+
+    Parameters
+    ----------
+    envmap : ndarray, shape (H, 2H, 3)
+        Equirectangular radiance.
+    width : float
+        Width of the kernel in the units of alpha (>= 0; 0 returns the map).
+
+    Returns
+    -------
+    ndarray, shape (H, 2H, 3), float64
+        Non-negative (the truncated kernel's small negative lobes are clipped).
+    """
+    if not width >= 0.0:
+        raise ValueError(f"blur width must be >= 0, got {width}")
+    if width == 0.0:
+        return np.asarray(envmap, dtype=np.float64)
+    # Degrees past 4 / width have gains below exp(-16): truncating there is exact to float32.
+    lmax = min(int(np.ceil(4.0 / width)), envmap.shape[0] // 2)
+    gains = np.exp(-((width * np.arange(lmax + 1)) ** 2))
+    return np.maximum(filter_equirect(envmap, gains), 0.0)
 
 
 def normalise(envmap: np.ndarray, target_mean: float) -> np.ndarray:

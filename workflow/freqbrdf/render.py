@@ -8,7 +8,7 @@ no side effect.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from types import ModuleType
 
@@ -47,7 +47,8 @@ def bitmap_texture(mi: ModuleType, array: np.ndarray) -> dict:
     }
 
 
-def principled_bsdf(mi: ModuleType, base_color: np.ndarray, roughness: np.ndarray, metallic: np.ndarray) -> dict:
+def principled_bsdf(mi: ModuleType, base_color: np.ndarray, roughness: np.ndarray, metallic: np.ndarray,
+                    clearcoat: float = 0.0, clearcoat_gloss: float = 0.0) -> dict:
     """Mitsuba ``principled`` BSDF driven by SVBRDF textures.
 
     Parameters
@@ -55,17 +56,116 @@ def principled_bsdf(mi: ModuleType, base_color: np.ndarray, roughness: np.ndarra
     base_color : ndarray, shape (H, W, 3)
     roughness, metallic : ndarray, shape (H, W)
         All in [0, 1]; Mitsuba uses ``alpha = roughness**2``.
+    clearcoat, clearcoat_gloss : float
+        Weight and gloss of the principled model's clear-coat lobe, which the
+        estimators do not model (0: none, as in the benchmark captures).
 
     Returns
     -------
     dict
     """
-    return {
+    bsdf = {
         "type": "principled",
         "base_color": bitmap_texture(mi, base_color),
         "roughness": bitmap_texture(mi, roughness),
         "metallic": bitmap_texture(mi, metallic),
     }
+    if clearcoat > 0.0:
+        bsdf |= {"clearcoat": float(clearcoat), "clearcoat_gloss": float(clearcoat_gloss)}
+    return bsdf
+
+
+def blend_bsdf(mi: ModuleType, base_color: np.ndarray, roughness: np.ndarray, metallic: np.ndarray,
+               distribution: str) -> dict:
+    """The principled BSDF's two lobes rebuilt from Mitsuba's rough conductor, with a chosen
+    microfacet distribution (``principled`` is GGX only).
+
+    A ``metallic`` blend of a dielectric (Lambertian ``base_color`` plus a specular lobe
+    with the Fresnel term of index 1.5, which a conductor of eta 1.5, k 0 has) and a
+    metal (specular lobe tinted by ``base_color``, no Fresnel falloff). With
+    ``distribution="beckmann"`` the captures break the GGX assumption of every
+    estimator; ``"ggx"`` is the control that isolates the distribution from the
+    other differences to ``principled`` (its diffuse and Fresnel models).
+
+    Parameters
+    ----------
+    base_color : ndarray, shape (H, W, 3)
+    roughness, metallic : ndarray, shape (H, W)
+        In [0, 1]; ``alpha = roughness**2`` as in :func:`principled_bsdf`.
+    distribution : {"ggx", "beckmann"}
+
+    Returns
+    -------
+    dict
+    """
+    if distribution not in ("ggx", "beckmann"):
+        raise ValueError(f"blend_bsdf: distribution must be 'ggx' or 'beckmann', got {distribution!r}")
+    alpha = np.maximum(np.asarray(roughness, dtype=np.float32) ** 2, 1e-3)  # Mitsuba's principled clamps alike
+    lobe = {"type": "roughconductor", "distribution": distribution}
+    # blendbsdf is a convex combination: each half of the dielectric is doubled to sum the two lobes.
+    dielectric = {
+        "type": "blendbsdf",
+        "weight": 0.5,
+        "diffuse": {"type": "diffuse", "reflectance": bitmap_texture(mi, 2.0 * np.asarray(base_color))},
+        "specular": lobe | {"alpha": bitmap_texture(mi, alpha), "eta": 1.5, "k": 0.0, "specular_reflectance": 2.0},
+    }
+    metal = lobe | {"alpha": bitmap_texture(mi, alpha), "material": "none",
+                    "specular_reflectance": bitmap_texture(mi, base_color)}
+    return {"type": "blendbsdf", "weight": bitmap_texture(mi, metallic), "dielectric": dielectric, "metal": metal}
+
+
+BSDF_MODELS = ("principled", "ggx_blend", "beckmann_blend")
+"""Ground-truth BSDFs of a capture: `principled_bsdf` (the estimators' model), or `blend_bsdf`
+with a GGX (control) or Beckmann (mismatched) distribution."""
+
+
+def capture_bsdf(mi: ModuleType, textures: dict, model: str = "principled", clearcoat: float = 0.0,
+                 clearcoat_gloss: float = 0.0) -> dict:
+    """The BSDF a capture is rendered with, by name (:data:`BSDF_MODELS`).
+
+    Parameters
+    ----------
+    textures : dict
+        ``base_color`` (H, W, 3), ``roughness`` and ``metallic`` (H, W).
+    model : str
+        One of :data:`BSDF_MODELS`.
+    clearcoat, clearcoat_gloss : float
+        Clear coat of the ``principled`` model (:func:`principled_bsdf`).
+
+    Returns
+    -------
+    dict
+    """
+    if model not in BSDF_MODELS:
+        raise ValueError(f"BSDF model must be one of {BSDF_MODELS}, got {model!r}")
+    if model == "principled":
+        return principled_bsdf(mi, **textures, clearcoat=clearcoat, clearcoat_gloss=clearcoat_gloss)
+    if clearcoat > 0.0:
+        raise ValueError(f"a clear coat needs the principled model, not {model!r}")
+    return blend_bsdf(mi, **textures, distribution=model.removesuffix("_blend"))
+
+
+def occluder_disk(mi: ModuleType, height: float, radius: float) -> dict:
+    """A black horizontal disk centred under the object at ``y = height``: it shadows light
+    from below for the object's lower part and, lying below the object, never hides the
+    object from a camera on the upper hemisphere (issue 17's unseen occluder).
+
+    Parameters
+    ----------
+    height : float
+        Plane of the disk (object radius 1; must be below the object's lowest point).
+    radius : float
+        Disk radius (> 0).
+
+    Returns
+    -------
+    dict
+    """
+    if not radius > 0.0:
+        raise ValueError(f"occluder radius must be > 0, got {radius}")
+    to_world = mi.ScalarTransform4f().translate([0.0, float(height), 0.0]) @ mi.ScalarTransform4f().rotate(
+        [1.0, 0.0, 0.0], -90.0) @ mi.ScalarTransform4f().scale(float(radius))
+    return {"type": "disk", "to_world": to_world, "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}}}
 
 
 def _sensor(mi: ModuleType, width: int, height: int, fov_x_deg: float, spp: int) -> dict:
@@ -94,6 +194,7 @@ def capture_scene(
     spp: int,
     max_depth: int,
     integrator: str = "path",
+    occluders: Sequence[dict] = (),
 ):
     """The object lit by an environment map, seen by one movable camera.
 
@@ -117,6 +218,8 @@ def capture_scene(
         ``path`` renders the captures; ``prb`` (path replay backpropagation)
         renders the same light transport and also differentiates it, for
         inverse rendering (:mod:`freqbrdf.inverse`).
+    occluders : sequence of dict
+        Further Mitsuba shapes in the scene, e.g. :func:`occluder_disk`.
 
     Returns
     -------
@@ -132,6 +235,7 @@ def capture_scene(
             "object": {"type": "ply", "filename": str(mesh), "bsdf": bsdf},
             "sensor": _sensor(mi, width, height, fov_x_deg, spp),
         }
+        | {f"occluder_{k}": shape for k, shape in enumerate(occluders)}
     )
 
 

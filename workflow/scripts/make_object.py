@@ -1,4 +1,10 @@
-"""Rule build_object: procedural mesh (PLY) and ground-truth SVBRDF textures (EXR + PNG)."""
+"""Rule build_object: procedural mesh (PLY) and ground-truth SVBRDF textures (EXR + PNG).
+
+A stress capture's object (config stress_captures) is its base shape with the base's
+textures (same seed), where ``params.material`` may make roughness or metallic uniform.
+"""
+
+import numpy as np
 
 from freqbrdf.artefacts import write_texture
 from freqbrdf.logs import run_script
@@ -7,7 +13,7 @@ from freqbrdf.textures import svbrdf_textures
 
 
 def main(smk, log):
-    mesh = make_mesh(smk.wildcards.object, detail=smk.params.detail)
+    mesh = make_mesh(smk.params.shape, detail=smk.params.detail)
     write_ply(smk.output.mesh, mesh)
     log.info("mesh: %d vertices, %d triangles", len(mesh.vertices), len(mesh.faces))
 
@@ -16,6 +22,9 @@ def main(smk, log):
         settings["resolution"], seed=smk.params.seed, cells=settings["cells"],
         grain_amplitude=settings["grain"], grain_texels=settings["grain_texels"],
     )
+    for name, value in smk.params.material.items():
+        textures[name] = np.full_like(textures[name], value)
+        log.info("%s: uniform %g (a stress capture's material)", name, value)
     for name, texture in textures.items():
         write_texture(smk.output[name], name, texture, preview=smk.output[f"{name}_png"])
         log.info("%s: %s, range [%.3f, %.3f]", name, texture.shape, texture.min(), texture.max())

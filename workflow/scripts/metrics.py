@@ -40,7 +40,7 @@ def correlation(x, y):
 
 def parameter_rows(smk):
     """mse_*, brdf_log_rmse and base_color_si_{psnr,ssim} of every method on every synthetic capture;
-    pearson_entropy_error of the entropy-scored methods."""
+    pearson_entropy_error of the entropy-scored methods; mean_entropy (over observed texels) of each capture."""
     p = smk.params
     truth_files = keyed([(o,) for o in p.objects], smk.input.truth, per=len(TEXTURES))
     truth = cache(lambda o: read_svbrdf(dict(zip(TEXTURES, truth_files[(o,)]))))
@@ -48,6 +48,10 @@ def parameter_rows(smk):
     entropies = keyed(p.captures, smk.input.entropy)
     scored = cache(lambda key: (lambda obs: obs.texels.texel[obs.observed])(read_observations(captures[key])))
     rows = []
+    for obj, env, poses in p.captures:
+        entropy = read_entropy(entropies[(obj, env, poses)]).atlas.ravel()[scored((obj, env, poses))]
+        rows.append(dict(object=obj, env=env, poses=poses, method="", relight_env="", metric="mean_entropy",
+                         value=float(entropy.mean())))
     for (obj, env, poses, method), directory in keyed(p.synthetic, smk.input.estimates).items():
         estimate, texels = read_svbrdf(directory), scored((obj, env, poses))
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")

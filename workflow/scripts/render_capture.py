@@ -11,7 +11,7 @@ from freqbrdf.io import atomic_directory, read_exr, write_exr, write_json, write
 from freqbrdf.logs import progress, run_script
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.plots import contact_sheet
-from freqbrdf.render import capture_scene, mask_scene, principled_bsdf, render_views
+from freqbrdf.render import capture_bsdf, capture_scene, mask_scene, occluder_disk, render_views
 
 
 def main(smk, log):
@@ -36,11 +36,22 @@ def main(smk, log):
 def _render_into(mi, smk, log, cameras, to_world, frame, tmp):
     p = smk.params
     textures = read_svbrdf({name: smk.input[name] for name in TEXTURES})
-    bsdf = principled_bsdf(mi, **textures)
+    settings = dict(p.scene)  # the capture's BSDF and occluder (config stress_captures; none in the benchmark)
+    occluder = settings.pop("occluder", None)
+    bsdf = capture_bsdf(mi, dict(textures), **settings)
+    occluders = [] if occluder is None else [occluder_disk(mi, occluder["height"], occluder["radius"])]
     scene = capture_scene(
         mi, smk.input.mesh, bsdf, read_exr(smk.input.envmap),
-        spp=p.render["spp"], max_depth=p.render["max_depth"], **frame,
+        spp=p.render["spp"], max_depth=p.render["max_depth"], occluders=occluders, **frame,
     )
+    if occluder is not None:
+        lowest = min(float(shape.bbox().min.y) for shape in scene.shapes() if shape.is_mesh())
+        if occluder["height"] >= lowest:
+            raise ValueError(f"config key stress_captures.{smk.wildcards.object}.occluder.height: "
+                             f"{occluder['height']} is not below the object (lowest point y = {lowest:.3f})")
+    log.info("scene: %s BSDF%s%s", settings.get("model", "principled"),
+             f", clear coat {settings['clearcoat']}" if settings.get("clearcoat") else "",
+             f", occluder disk at y = {occluder['height']}, radius {occluder['radius']}" if occluder else "")
     start = time.perf_counter()
     previews = []
     for i, (name, image) in enumerate(zip(cameras.names, render_views(mi, scene, to_world, seed=p.seed))):

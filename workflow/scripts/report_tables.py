@@ -17,8 +17,9 @@ def write_text(path: str, text: str) -> None:
 
 def main(smk, log):
     metrics = check_tidy(pd.read_csv(smk.input.metrics, keep_default_na=False, na_values=[""]))
-    # One pose source per table: the run's (metrics.csv may hold others from earlier runs' configs).
-    metrics = metrics[metrics.poses == smk.params.poses]
+    # One pose source per table, the run's, and the benchmark's captures only: metrics.csv also
+    # holds poses.compare and the stress captures (rule stress_tables reports them).
+    metrics = metrics[(metrics.poses == smk.params.poses) & ~metrics.object.isin(smk.params.stress)]
     if metrics.empty:
         raise ValueError(f"{smk.input.metrics}: no rows with poses == {smk.params.poses!r}")
     tables = summaries(metrics, read_paper_results(smk.input.paper), smk.params.env_kinds)

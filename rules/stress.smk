@@ -1,0 +1,63 @@
+# Captures that break the model's assumptions (config stress_captures) and the benchmark
+# estimated from other pose sources (config poses.compare), scored apart from the paper's
+# tables: one page of tables and one figure (config/stress.yaml runs them).
+from freqbrdf.stress import stress_description, stress_reference
+
+OCCLUDED = [(o, e) for o, e in STRESS_CAPTURES if "occluder" in STRESS[o]]
+# Each ambiguity pair once, in config order: (first, second) as (object, env) captures.
+PAIRS = [
+    ((o, e), (STRESS[o]["pair"], STRESS[STRESS[o]["pair"]]["env"]))
+    for o, e in STRESS_CAPTURES
+    if "pair" in STRESS[o] and list(STRESS).index(o) < list(STRESS).index(STRESS[o]["pair"])
+]
+
+
+rule stress_tables:
+    """The pose-effect table (each method's MSE and relighting from every pose source),
+    each stress capture beside the capture it differs from by one assumption, error and
+    entropy inside and outside an unseen occluder's shadow, and the ambiguity pairs."""
+    input:
+        metrics="results/tables/metrics.csv",
+        observations=[f"results/observations/{o}/{e}/{POSES}" for o, e in STRESS_CAPTURES],
+        entropy=[f"results/entropy/{o}/{e}/{POSES}" for o, e in STRESS_CAPTURES],
+        truth=[object_files(o)[name] for o, _ in STRESS_CAPTURES for name in TEXTURES],
+        estimates=[f"results/estimates/{o}/{e}/{POSES}/{m}" for o, e in STRESS_CAPTURES for m in METHODS],
+        envmaps=[f"results/envs/{e}.exr" for _, e in OCCLUDED],
+        pairs=[f"results/captures/{o}/{e}/train" for pair in PAIRS for o, e in pair],
+        code=library("stress_tables"),
+    output:
+        md="results/tables/stress.md",
+        html=report(
+            "results/tables/stress.html",
+            category="Tables",
+            caption="../report/stress.rst",
+            labels={"table": "stress captures and pose effect"},
+        ),
+        figure=report(
+            "results/figures/stress.png",
+            category="Stress captures",
+            caption="../report/stress_figure.rst",
+            labels={"figure": "entropy and error of the stress captures"},
+        ),
+        regions="results/tables/stress_regions.tsv",
+    log:
+        "results/logs/stress_tables.log",
+    conda:
+        "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(800, "texels"),
+        runtime=minutes(1, "texels"),
+    params:
+        poses=POSES,
+        compare=POSE_COMPARE,
+        benchmark=BENCHMARK_CAPTURES,
+        methods=METHODS,
+        captures=STRESS_CAPTURES,
+        descriptions={o: stress_description(STRESS[o]) for o, _ in STRESS_CAPTURES},
+        references={o: stress_reference(o, STRESS, BENCHMARK_CAPTURES) for o, _ in STRESS_CAPTURES},
+        occluded=[(o, e, STRESS[o]["occluder"]) for o, e in OCCLUDED],
+        pairs=PAIRS,
+        # a texel is in the occluder's shadow when the disk blocks at least this share of its light
+        shadow_fraction=0.1,
+    script:
+        "../workflow/scripts/stress_tables.py"

@@ -1,0 +1,150 @@
+"""Rule stress_tables: the pose-effect table, the stress captures beside their references,
+error and entropy inside and outside an unseen occluder's shadow, and the ambiguity pairs
+(see rules/stress.smk). Every path comes from ``snakemake.input``, in the orders of
+``snakemake.params``."""
+
+import numpy as np
+import pandas as pd
+
+from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
+from freqbrdf.brdf import TEXTURES
+from freqbrdf.cameras import cameras_from_json
+from freqbrdf.io import atomic_path, read_exr, read_json, read_views
+from freqbrdf.logs import run_script
+from freqbrdf.methods import FREQUENCY_RULES, METHODS
+from freqbrdf.metrics import parameter_error_map
+from freqbrdf.plots import pyplot, save_figure
+from freqbrdf.stress import blocked_light, image_psnr, pair_table, pose_effect_table, region_table, stress_table
+from freqbrdf.tables import check_tidy, fmt, html_page, method_label, to_html, to_markdown
+
+
+def capture_arrays(smk, index):
+    """Observed texels, entropy, per-method error (all (T,)) and the observations of stress capture ``index``."""
+    p, n = smk.params, len(smk.params.methods)
+    obs = read_observations(smk.input.observations[index])
+    texels = obs.texels.texel[obs.observed]
+    entropy = read_entropy(smk.input.entropy[index]).atlas.ravel()[texels]
+    truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth[3 * index : 3 * index + 3])))
+    error = {m: parameter_error_map(truth, read_svbrdf(d)).ravel()[texels]
+             for m, d in zip(p.methods, smk.input.estimates[n * index : n * (index + 1)])}
+    return obs, texels, entropy, error
+
+
+def pair_psnr(first, second):
+    """PSNR between the training views of two captures of the same rig, over pixels both cover fully."""
+    cameras = cameras_from_json(read_json(f"{first}/cameras.json"), f"{first}/cameras.json")
+    a, cover_a, _ = read_views(first, cameras.names, cameras.width, cameras.height)
+    b, cover_b, _ = read_views(second, cameras.names, cameras.width, cameras.height)
+    return image_psnr(list(a), list(b), list((cover_a >= 0.99) & (cover_b >= 0.99)))
+
+
+def main(smk, log):
+    p = smk.params
+    metrics = check_tidy(pd.read_csv(smk.input.metrics, keep_default_na=False, na_values=[""]))
+    primary = metrics[metrics.poses == p.poses]
+    sections = []
+    for source in p.compare:
+        table = pose_effect_table(metrics, p.poses, source, p.benchmark, p.methods)
+        sections.append((f"Pose source: {source} against {p.poses}", table,
+                         f"Each method on the benchmark's {len(p.benchmark)} captures estimated from {source} poses "
+                         f"instead of {p.poses}: parameter MSE and relighting PSNR-H (means over captures and "
+                         "relighting environments) and their change."))
+        log.info("pose effect (%s vs %s):\n%s", source, p.poses, to_markdown(table))
+
+    if p.captures:
+        stress = {o: (e, p.descriptions[o]) for o, e in p.captures}
+        table = stress_table(primary, stress, p.references, p.poses, p.methods)
+        sections.append(("Stress captures", table,
+                         "Each capture that breaks one of the model's assumptions, its value first and, in brackets, "
+                         "that of the capture it is compared with (same textures, the assumption kept). Mean entropy: "
+                         "the spectrum entropy over observed texels (0 certain, 1 uniform)."))
+
+    shown = next((m for m in p.methods if METHODS[m].rule in FREQUENCY_RULES), p.methods[0])
+    regions, figure_rows = [], []
+    occluded = {o: occluder for o, _, occluder in p.occluded}
+    for index, (obj, env) in enumerate(p.captures):
+        obs, texels, entropy, error = capture_arrays(smk, index)
+        row = {"name": f"{obj} / {env}", "resolution": obs.texels.resolution, "texels": texels,
+               "entropy": entropy, "error": error[shown], "blocked": None}
+        if obj in occluded:
+            occluder = occluded[obj]
+            envmap = read_exr(smk.input.envmaps[[o for o, _, _ in p.occluded].index(obj)])
+            positions, normals = obs.texels.position[obs.observed], obs.texels.normal[obs.observed]
+            blocked = blocked_light(positions, normals, envmap, occluder["height"], occluder["radius"])
+            table = region_table(error, entropy, blocked >= p.shadow_fraction)
+            table.insert(0, "capture", f"{obj} / {env}")
+            regions.append(table.rename_axis("region").reset_index())
+            row["blocked"] = blocked
+            log.info("%s: %d of %d observed texels lose >= %.0f%% of their light to the occluder", obj,
+                     int((blocked >= p.shadow_fraction).sum()), len(blocked), 100 * p.shadow_fraction)
+        figure_rows.append(row)
+    region_rows = pd.concat(regions, ignore_index=True) if regions else pd.DataFrame(columns=["capture", "region"])
+    with atomic_path(smk.output.regions) as tmp:
+        region_rows.to_csv(tmp, sep="\t", index=False, float_format="%.6g")
+    if regions:
+        shown_regions = region_rows.rename(columns={f"mse_{m}": f"MSE {method_label(m)}" for m in p.methods}
+                                           | {"mean_entropy": "Mean entropy"})
+        shown_regions = shown_regions.map(lambda v: fmt(v, 4) if isinstance(v, float) else str(v))
+        sections.append(("Unseen occluder: inside and outside its shadow", shown_regions,
+                         f"Observed texels whose light the occluder (absent from the estimators' mesh) cuts by at "
+                         f"least {100 * p.shadow_fraction:.0f}% (shadowed) or less (lit): mean per-texel parameter "
+                         "error of each method and mean entropy."))
+
+    if p.pairs:
+        pairs = [(first, second, pair_psnr(smk.input.pairs[2 * i], smk.input.pairs[2 * i + 1]))
+                 for i, (first, second) in enumerate(p.pairs)]
+        for first, second, psnr in pairs:
+            log.info("ambiguity pair %s / %s: training views %.1f dB apart", first[0], second[0], psnr)
+        sections.append(("Light/material ambiguity pairs", pair_table(primary, pairs, p.references, p.poses, p.methods),
+                         "A rough material under a sharp light and a shinier one under a blurred light: the PSNR "
+                         "between their training views (same cameras), their mean entropy (in brackets: the benchmark "
+                         "capture of the base object) and each method's roughness MSE."))
+
+    text = "# FreqBRDF: stress captures and pose sources\n\n" + "\n".join(
+        to_markdown(table, title, caption) for title, table, caption in sections)
+    with atomic_path(smk.output.md) as tmp:
+        tmp.write_text(text)
+    body = "\n".join(to_html(table, title, caption) for title, table, caption in sections)
+    with atomic_path(smk.output.html) as tmp:
+        tmp.write_text(html_page("FreqBRDF: stress captures and pose sources", body))
+    stress_figure(smk.output.figure, figure_rows, method_label(shown))
+    log.info("%s", text)
+
+
+def atlas(resolution, texels, values):
+    """Per-texel values on the UV atlas, NaN where unobserved."""
+    image = np.full(resolution * resolution, np.nan)
+    image[texels] = values
+    return image.reshape(resolution, resolution)
+
+
+def stress_figure(path, rows, method):
+    """One row per stress capture: entropy, the method's per-texel error and, for an occluded
+    capture, the share of light the occluder blocks."""
+    plt = pyplot()
+    if not rows:
+        fig, ax = plt.subplots(figsize=(4, 1))
+        ax.axis("off")
+        ax.text(0.5, 0.5, "no stress captures in this configuration", ha="center", va="center")
+        save_figure(fig, path)
+        return
+    fig, axes = plt.subplots(len(rows), 3, figsize=(10, 3.2 * len(rows)), squeeze=False)
+    cmap = plt.get_cmap("turbo").with_extremes(bad="0.85")
+    vmax = max(float(np.nanpercentile(r["error"], 99)) for r in rows) or 1.0
+    for axs, row in zip(axes, rows):
+        panels = [("entropy", row["entropy"], 1.0), (f"{method} squared error", row["error"], vmax),
+                  ("light blocked by the occluder", row["blocked"], 1.0)]
+        for ax, (title, values, top) in zip(axs, panels):
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if values is None:
+                ax.axis("off")
+                continue
+            shown = ax.imshow(atlas(row["resolution"], row["texels"], values), cmap=cmap, vmin=0.0, vmax=top,
+                              interpolation="nearest")
+            ax.set_title(f"{row['name']}: {title}", fontsize=9)
+            fig.colorbar(shown, ax=ax, fraction=0.046)
+    save_figure(fig, path)
+
+
+run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
