@@ -661,8 +661,8 @@ def test_stress_captures_are_scored_apart_from_the_benchmark(stress):
     import pandas as pd
 
     table = pd.read_csv(stress / "results/tables/metrics.csv", keep_default_na=False)
-    captures = {"sphere_beckmann": "studio", "sphere_occluded": "studio_low", "sphere_rough": "studio",
-                "sphere_shiny": "studio_blur"}
+    captures = {"sphere_beckmann": "studio", "sphere_occluded": "studio_low", "sphere_low": "studio_low",
+                "sphere_rough": "studio", "sphere_shiny": "studio_blur"}
     for obj, env in captures.items():
         rows = table[(table.object == obj) & (table.env == env)]
         assert set(rows[rows.metric == "mse_average"].method) == {"spectrum", "freq"}
@@ -680,9 +680,12 @@ def test_stress_captures_are_scored_apart_from_the_benchmark(stress):
     assert "sphere_beckmann / studio | Beckmann microfacets (GGX fitted) | sphere / studio" in page
     assert "sphere_shiny / studio_blur | sphere_rough / studio" in page
     assert "Pose source" not in page  # no poses.compare
-    regions = pd.read_csv(stress / "results/tables/stress_regions.tsv", sep="\t").set_index("region")
-    # studio_low's lights below the horizon reach part of the sphere only past the disk
-    assert regions.loc["shadowed", "texels"] > 20 and regions.loc["lit", "texels"] > 20
+    regions = pd.read_csv(stress / "results/tables/stress_regions.tsv", sep="\t").set_index(["capture", "region"])
+    # studio_low's lights below the horizon reach part of the sphere only past the disk; the
+    # control capture (no occluder) is scored on the same atlas texels
+    occluded, control = regions.loc["sphere_occluded / studio_low"], regions.loc["sphere_low / studio_low (no occluder)"]
+    assert occluded.loc["shadowed", "texels"] > 20 and occluded.loc["lit", "texels"] > 20
+    assert abs(control.loc["shadowed", "texels"] / occluded.loc["shadowed", "texels"] - 1.0) < 0.1
     assert (stress / "results/figures/stress.png").stat().st_size > 10000
 
 

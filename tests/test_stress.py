@@ -90,14 +90,19 @@ def test_stress_and_pair_tables_put_each_capture_beside_its_reference():
     assert pairs.iloc[0]["Roughness MSE Ours"] == "0.2000" and pairs.iloc[1]["Roughness MSE Ours"] == "-"
 
 
-def test_stress_reference_prefers_the_ggx_control_then_the_benchmark_capture():
+def test_stress_reference_prefers_a_control_capture_then_the_benchmark_capture():
     stress = {"ggx": {"object": "sphere", "env": "studio", "model": "ggx_blend"},
               "beck": {"object": "sphere", "env": "studio", "model": "beckmann_blend"},
-              "blurred": {"object": "sphere", "env": "studio_blur", "roughness": 0.5}}
+              "blurred": {"object": "sphere", "env": "studio_blur", "roughness": 0.5},
+              "occluded": {"object": "sphere", "env": "low", "occluder": {"height": -1.1, "radius": 2}},
+              "low": {"object": "sphere", "env": "low"}}
     benchmark = [("sphere", "studio"), ("sphere", "sunny")]
     assert stress_reference("beck", stress, benchmark) == ("ggx", "studio")
     assert stress_reference("ggx", stress, benchmark) == ("sphere", "studio")
     assert stress_reference("blurred", stress, benchmark) is None
+    assert stress_reference("occluded", stress, benchmark) == ("low", "low")
+    assert stress_reference("low", stress, benchmark) is None
+    assert stress_description(stress["low"]) == "nothing (a control)"
     assert "Beckmann" in stress_description(stress["beck"])
     assert stress_description({"object": "sphere", "env": "studio", "occluder": {"height": -1.1, "radius": 2},
                                "metallic": 1.0}) == "unseen occluder (disk r 2 at y -1.1); uniform metallic 1"

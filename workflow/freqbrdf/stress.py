@@ -255,14 +255,17 @@ def stress_description(capture: Mapping[str, object]) -> str:
         parts.append("uniform " + ", ".join(uniform))
     if "pair" in capture:
         parts.append(f"ambiguity pair of {capture['pair']}")
-    return "; ".join(parts) or "nothing (as the benchmark)"
+    return "; ".join(parts) or "nothing (a control)"
 
 
 def stress_reference(name: str, stress: Mapping[str, Mapping[str, object]],
                      benchmark: Sequence[tuple[str, str]]) -> tuple[str, str] | None:
-    """The capture a stress capture is compared with: for Beckmann lobes, a GGX-blend control
-    of the same object and environment if there is one; else the benchmark capture of its base
-    object under its environment; else None.
+    """The capture a stress capture is compared with, differing from it by the one assumption.
+
+    In order: for Beckmann lobes, a GGX-blend control of the same object and environment;
+    for any other, a plain stress capture (no key but ``object`` and ``env``) of the same
+    object and environment, e.g. the control of an occluded capture under its own light;
+    else the benchmark capture of its object under its environment; else None.
 
     Parameters
     ----------
@@ -275,9 +278,9 @@ def stress_reference(name: str, stress: Mapping[str, Mapping[str, object]],
     """
     capture = stress[name]
     base = (capture["object"], capture["env"])
-    if capture.get("model") == "beckmann_blend":
-        for other, spec in stress.items():
-            if spec.get("model") == "ggx_blend" and (spec["object"], spec["env"]) == base and \
-                    set(spec) <= {"object", "env", "model"}:
-                return other, spec["env"]
+    control = {"ggx_blend"} if capture.get("model") == "beckmann_blend" else {"principled"}
+    for other, spec in stress.items():
+        if other != name and (spec["object"], spec["env"]) == base and set(spec) <= {"object", "env", "model"} \
+                and spec.get("model", "principled") in control:
+            return other, spec["env"]
     return base if base in set(map(tuple, benchmark)) else None

@@ -59,25 +59,36 @@ def main(smk, log):
                          "that of the capture it is compared with (same textures, the assumption kept). Mean entropy: "
                          "the spectrum entropy over observed texels (0 certain, 1 uniform)."))
 
-    shown = next((m for m in p.methods if METHODS[m].rule in FREQUENCY_RULES), p.methods[0])
+    # The figure and the region table show the gradient-descent estimator when it ran.
+    frequency = [m for m in p.methods if METHODS[m].rule in FREQUENCY_RULES]
+    shown = next((m for m in frequency if METHODS[m].rule == "optimise_svbrdf"), (frequency or p.methods)[0])
+    index = {o: i for i, (o, _) in enumerate(p.captures)}
+    arrays = [capture_arrays(smk, i) for i in range(len(p.captures))]
     regions, figure_rows = [], []
-    occluded = {o: occluder for o, _, occluder in p.occluded}
-    for index, (obj, env) in enumerate(p.captures):
-        obs, texels, entropy, error = capture_arrays(smk, index)
-        row = {"name": f"{obj} / {env}", "resolution": obs.texels.resolution, "texels": texels,
-               "entropy": entropy, "error": error[shown], "blocked": None}
-        if obj in occluded:
-            occluder = occluded[obj]
-            envmap = read_exr(smk.input.envmaps[[o for o, _, _ in p.occluded].index(obj)])
-            positions, normals = obs.texels.position[obs.observed], obs.texels.normal[obs.observed]
-            blocked = blocked_light(positions, normals, envmap, occluder["height"], occluder["radius"])
-            table = region_table(error, entropy, blocked >= p.shadow_fraction)
-            table.insert(0, "capture", f"{obj} / {env}")
+    blocked_by = {}
+    for (obj, env, occluder), envmap in zip(p.occluded, smk.input.envmaps):
+        obs, texels, entropy, error = arrays[index[obj]]
+        positions, normals = obs.texels.position[obs.observed], obs.texels.normal[obs.observed]
+        blocked = blocked_light(positions, normals, read_exr(envmap), occluder["height"], occluder["radius"])
+        blocked_by[obj] = blocked
+        shadowed = blocked >= p.shadow_fraction
+        log.info("%s: %d of %d observed texels lose >= %.0f%% of their light to the occluder", obj,
+                 int(shadowed.sum()), len(blocked), 100 * p.shadow_fraction)
+        scored = [(f"{obj} / {env}", texels, entropy, error, shadowed)]
+        ref = p.references.get(obj)
+        if ref is not None and ref[0] in index:
+            # The control (same object, light and views, no occluder) on the same atlas texels: what
+            # the region's error is without the occluder (lower texels are seen from fewer views).
+            _, ref_texels, ref_entropy, ref_error = arrays[index[ref[0]]]
+            ref_shadowed = np.isin(ref_texels, texels[shadowed])
+            scored.append((f"{ref[0]} / {ref[1]} (no occluder)", ref_texels, ref_entropy, ref_error, ref_shadowed))
+        for name, _, ent, err, mask in scored:
+            table = region_table(err, ent, mask)
+            table.insert(0, "capture", name)
             regions.append(table.rename_axis("region").reset_index())
-            row["blocked"] = blocked
-            log.info("%s: %d of %d observed texels lose >= %.0f%% of their light to the occluder", obj,
-                     int((blocked >= p.shadow_fraction).sum()), len(blocked), 100 * p.shadow_fraction)
-        figure_rows.append(row)
+    for (obj, env), (obs, texels, entropy, error) in zip(p.captures, arrays):
+        figure_rows.append({"name": f"{obj} / {env}", "resolution": obs.texels.resolution, "texels": texels,
+                            "entropy": entropy, "error": error[shown], "blocked": blocked_by.get(obj)})
     region_rows = pd.concat(regions, ignore_index=True) if regions else pd.DataFrame(columns=["capture", "region"])
     with atomic_path(smk.output.regions) as tmp:
         region_rows.to_csv(tmp, sep="\t", index=False, float_format="%.6g")
@@ -88,7 +99,8 @@ def main(smk, log):
         sections.append(("Unseen occluder: inside and outside its shadow", shown_regions,
                          f"Observed texels whose light the occluder (absent from the estimators' mesh) cuts by at "
                          f"least {100 * p.shadow_fraction:.0f}% (shadowed) or less (lit): mean per-texel parameter "
-                         "error of each method and mean entropy."))
+                         "error of each method and mean entropy; the control capture (no occluder), where the "
+                         "config has one, on the same texels."))
 
     if p.pairs:
         pairs = [(first, second, pair_psnr(smk.input.pairs[2 * i], smk.input.pairs[2 * i + 1]))
@@ -131,18 +143,20 @@ def stress_figure(path, rows, method):
     fig, axes = plt.subplots(len(rows), 3, figsize=(10, 3.2 * len(rows)), squeeze=False)
     cmap = plt.get_cmap("turbo").with_extremes(bad="0.85")
     vmax = max(float(np.nanpercentile(r["error"], 99)) for r in rows) or 1.0
-    for axs, row in zip(axes, rows):
-        panels = [("entropy", row["entropy"], 1.0), (f"{method} squared error", row["error"], vmax),
-                  ("light blocked by the occluder", row["blocked"], 1.0)]
-        for ax, (title, values, top) in zip(axs, panels):
+    titles = ["entropy", f"{method}: squared error", "light the occluder blocks"]
+    for r, (axs, row) in enumerate(zip(axes, rows)):
+        panels = [(row["entropy"], 1.0), (row["error"], vmax), (row["blocked"], 1.0)]
+        axs[0].set_ylabel(row["name"], fontsize=9)
+        for ax, title, (values, top) in zip(axs, titles, panels):
             ax.set_xticks([])
             ax.set_yticks([])
             if values is None:
-                ax.axis("off")
+                ax.set_frame_on(False)
                 continue
             shown = ax.imshow(atlas(row["resolution"], row["texels"], values), cmap=cmap, vmin=0.0, vmax=top,
                               interpolation="nearest")
-            ax.set_title(f"{row['name']}: {title}", fontsize=9)
+            if r == 0 or title == titles[2]:
+                ax.set_title(title, fontsize=9)
             fig.colorbar(shown, ax=ax, fraction=0.046)
     save_figure(fig, path)
 
