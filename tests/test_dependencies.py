@@ -28,6 +28,23 @@ def test_script_modules_match_what_python_imports(script: Path) -> None:
     assert script_modules(script, PACKAGE) == imported_by_modulefinder(script)
 
 
+def test_an_edited_module_is_read_again_in_the_same_process(tmp_path: Path) -> None:
+    """Modules are parsed once per version: an edit (new size and time) is seen at once."""
+    import os
+
+    package = tmp_path / "freqbrdf"
+    package.mkdir()
+    (package / "a.py").write_text("X = 1\n")
+    (package / "b.py").write_text("Y = 2\n")
+    script = tmp_path / "script.py"
+    script.write_text("from freqbrdf import a\n")
+    assert script_modules(script, package) == ["__init__", "a"]
+    (package / "a.py").write_text("from . import b\n")
+    stat = (package / "a.py").stat()
+    os.utime(package / "a.py", ns=(stat.st_atime_ns, stat.st_mtime_ns + 10**9))
+    assert script_modules(script, package) == ["__init__", "a", "b"]
+
+
 def rule_blocks() -> dict[str, str]:
     blocks = {}
     for smk in sorted((REPO / "rules").glob("*.smk")):

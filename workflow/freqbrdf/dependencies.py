@@ -9,6 +9,7 @@ drifts, and a stale result is silent.
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 __all__ = ["script_modules"]
@@ -33,6 +34,14 @@ def _imported(tree: ast.AST, in_package: bool) -> set[str]:
             elif relative:
                 out |= {node.module.split(".")[0]} if node.module else {alias.name for alias in node.names}
     return out
+
+
+@functools.cache
+def _package_imports(source: str, stamp: tuple[int, int]) -> frozenset[str]:
+    """`_imported` of one package module, parsed once per process and version (``stamp``:
+    modification time and size): every rule's `script_modules` walks the same modules, and
+    parsing them anew for each made most of a dry run's time."""
+    return frozenset(_imported(ast.parse(Path(source).read_text(), filename=source), in_package=True))
 
 
 def script_modules(script: str | Path, package_dir: str | Path) -> list[str]:
@@ -64,5 +73,6 @@ def script_modules(script: str | Path, package_dir: str | Path) -> list[str]:
         if not source.is_file():
             raise FileNotFoundError(f"{script} imports {PACKAGE}.{name}, but {source} does not exist")
         seen.add(name)
-        todo |= _imported(ast.parse(source.read_text(), filename=str(source)), in_package=True)
+        stat = source.stat()
+        todo |= _package_imports(str(source), (stat.st_mtime_ns, stat.st_size))
     return sorted(seen)
