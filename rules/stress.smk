@@ -1,15 +1,11 @@
 # Captures that break the model's assumptions (config stress_captures) and the benchmark
 # estimated from other pose sources (config poses.compare), scored apart from the paper's
 # tables: one page of tables and one figure (config/stress.yaml runs them).
-from freqbrdf.stress import stress_description, stress_reference
+from freqbrdf.stress import ambiguity_pairs, stress_description, stress_reference
 
 OCCLUDED = [(o, e) for o, e in STRESS_CAPTURES if "occluder" in STRESS[o]]
-# Each ambiguity pair once, in config order: (first, second) as (object, env) captures.
-PAIRS = [
-    ((o, e), (STRESS[o]["pair"], STRESS[STRESS[o]["pair"]]["env"]))
-    for o, e in STRESS_CAPTURES
-    if "pair" in STRESS[o] and list(STRESS).index(o) < list(STRESS).index(STRESS[o]["pair"])
-]
+# The ambiguity pairs as ((object, env), (object, env)) captures.
+PAIRS = [((a, STRESS[a]["env"]), (b, STRESS[b]["env"])) for a, b in ambiguity_pairs(STRESS)]
 
 
 rule stress_tables:

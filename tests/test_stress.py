@@ -7,7 +7,7 @@ import pytest
 
 from freqbrdf import envmaps
 from freqbrdf.sh import project_equirect, sh_degrees
-from freqbrdf.stress import (blocked_light, image_psnr, pair_table, pose_effect_table, region_table, stress_description,
+from freqbrdf.stress import (ambiguity_pairs, blocked_light, image_psnr, pair_table, pose_effect_table, region_table, stress_description,
                              stress_reference, stress_table)
 from freqbrdf.tables import check_tidy
 
@@ -127,3 +127,9 @@ def test_studio_lights_go_below_the_horizon_when_asked():
         return env[32:].sum() / env[:32].sum()
 
     assert below_over_above(low) > 2.0 > 0.5 > below_over_above(high)
+
+
+def test_ambiguity_pairs_are_listed_once_whichever_side_names_them():
+    stress = {"a": {"pair": "c"}, "b": {}, "c": {"pair": "a"}, "d": {}, "e": {"pair": "d"}}
+    assert ambiguity_pairs(stress) == [("a", "c"), ("d", "e")]
+    assert ambiguity_pairs({"x": {}, "y": {"pair": "x"}}) == [("x", "y")]

@@ -237,6 +237,21 @@ def pair_table(df: pd.DataFrame, pairs: Sequence[tuple[tuple[str, str], tuple[st
     return pd.DataFrame(rows)
 
 
+def ambiguity_pairs(stress: Mapping[str, Mapping[str, object]]) -> list[tuple[str, str]]:
+    """Each light/material ambiguity pair of config ``stress_captures`` once, in config order,
+    whether its ``pair`` key is set on one capture or on both.
+
+    Returns
+    -------
+    list of (str, str)
+        (first, second) capture names, the first being the earlier in config.
+    """
+    order = list(stress)
+    pairs = {tuple(sorted((name, str(spec["pair"])), key=order.index))
+             for name, spec in stress.items() if "pair" in spec}
+    return sorted(pairs, key=lambda pair: order.index(pair[0]))
+
+
 def stress_description(capture: Mapping[str, object]) -> str:
     """What a stress capture (a config ``stress_captures`` entry) breaks, in a few words."""
     parts = []

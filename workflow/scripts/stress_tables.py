@@ -19,12 +19,13 @@ from freqbrdf.tables import check_tidy, fmt, html_page, method_label, to_html, t
 
 
 def capture_arrays(smk, index):
-    """Observed texels, entropy, per-method error (all (T,)) and the observations of stress capture ``index``."""
-    p, n = smk.params, len(smk.params.methods)
+    """The observations of stress capture ``index``, its observed texels (atlas indices), their entropy
+    and each method's per-texel squared parameter error (arrays of shape (T_observed,))."""
+    p, n, k = smk.params, len(smk.params.methods), len(TEXTURES)
     obs = read_observations(smk.input.observations[index])
     texels = obs.texels.texel[obs.observed]
     entropy = read_entropy(smk.input.entropy[index]).atlas.ravel()[texels]
-    truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth[3 * index : 3 * index + 3])))
+    truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth[k * index : k * (index + 1)])))
     error = {m: parameter_error_map(truth, read_svbrdf(d)).ravel()[texels]
              for m, d in zip(p.methods, smk.input.estimates[n * index : n * (index + 1)])}
     return obs, texels, entropy, error
