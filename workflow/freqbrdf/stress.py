@@ -164,7 +164,7 @@ def pose_effect_table(df: pd.DataFrame, primary: str, other: str, captures: Sequ
     return pd.DataFrame(rows)
 
 
-def stress_table(df: pd.DataFrame, stress: Mapping[str, tuple[str, str, str]],
+def stress_table(df: pd.DataFrame, stress: Mapping[str, tuple[str, str]],
                  references: Mapping[str, tuple[str, str] | None], poses: str,
                  methods: Sequence[str]) -> pd.DataFrame:
     """Each stress capture beside the capture it differs from by one assumption.
