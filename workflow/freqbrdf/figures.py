@@ -408,3 +408,48 @@ def view_selection_figure(path: str | os.PathLike, table: pd.DataFrame) -> None:
     axes[0, 0].set_ylabel("parameter MSE (freq)")
     axes[0, -1].legend(fontsize=8)
     save_figure(fig, path, dpi=100)
+
+
+def stress_figure(path: str | os.PathLike, rows: list[Mapping[str, object]], method: str) -> None:
+    """One row per stress capture (rule stress_tables): its entropy, a method's per-texel squared
+    parameter error and, for an occluded capture, the share of light the occluder blocks, on the atlas.
+
+    Parameters
+    ----------
+    path : path-like
+        PNG destination.
+    rows : list of mapping
+        ``name`` (str), ``resolution`` (atlas size R), ``texels`` (T,) flat atlas indices of the
+        observed texels, and per texel ``entropy``, ``error`` and ``blocked`` (T,) (None: no occluder).
+    method : str
+        Display name of the method whose error is shown.
+    """
+    plt = pyplot()
+    if not rows:
+        fig, ax = plt.subplots(figsize=(4, 1))
+        ax.axis("off")
+        ax.text(0.5, 0.5, "no stress captures in this configuration", ha="center", va="center")
+        save_figure(fig, path)
+        return
+    fig, axes = plt.subplots(len(rows), 3, figsize=(10, 3.2 * len(rows)), squeeze=False)
+    cmap = plt.get_cmap("turbo").with_extremes(bad=GREY)
+    pooled = np.concatenate([np.asarray(r["error"]) for r in rows])
+    vmax = error_scale({method: pooled}, np.ones(pooled.shape, bool))
+    titles = ["entropy", f"{method}: squared error", "light the occluder blocks"]
+    for r, (axs, row) in enumerate(zip(axes, rows)):
+        panels = [(row["entropy"], 1.0), (row["error"], vmax), (row["blocked"], 1.0)]
+        axs[0].set_ylabel(row["name"], fontsize=9)
+        for ax, title, (values, top) in zip(axs, titles, panels):
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if values is None:
+                ax.set_frame_on(False)
+                continue
+            image = np.full(row["resolution"] ** 2, np.nan)
+            image[row["texels"]] = values
+            shown = ax.imshow(image.reshape(row["resolution"], row["resolution"]), cmap=cmap, vmin=0.0, vmax=top,
+                              interpolation="nearest")
+            if r == 0 or title == titles[2]:
+                ax.set_title(title, fontsize=9)
+            fig.colorbar(shown, ax=ax, fraction=0.046)
+    save_figure(fig, path)

@@ -47,9 +47,10 @@ def parameter_rows(smk):
     captures = keyed(p.captures, smk.input.observations)
     entropies = keyed(p.captures, smk.input.entropy)
     scored = cache(lambda key: (lambda obs: obs.texels.texel[obs.observed])(read_observations(captures[key])))
+    entropy_atlas = cache(lambda key: read_entropy(entropies[key]).atlas.ravel())
     rows = []
     for obj, env, poses in p.captures:
-        entropy = read_entropy(entropies[(obj, env, poses)]).atlas.ravel()[scored((obj, env, poses))]
+        entropy = entropy_atlas((obj, env, poses))[scored((obj, env, poses))]
         rows.append(dict(object=obj, env=env, poses=poses, method="", relight_env="", metric="mean_entropy",
                          value=float(entropy.mean())))
     for (obj, env, poses, method), directory in keyed(p.synthetic, smk.input.estimates).items():
@@ -60,7 +61,7 @@ def parameter_rows(smk):
         scaled = base_color_si_scores(truth(obj).base_color, estimate.base_color, texels)
         rows += [key | dict(metric=f"base_color_si_{k}", value=v) for k, v in scaled.items()]
         if method in p.entropy_methods:
-            entropy = read_entropy(entropies[(obj, env, poses)]).atlas.ravel()
+            entropy = entropy_atlas((obj, env, poses))
             error = parameter_error_map(truth(obj), estimate).ravel()
             rows.append(key | dict(metric="pearson_entropy_error", value=correlation(entropy[texels], error[texels])))
     return rows

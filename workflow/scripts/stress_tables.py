@@ -9,11 +9,11 @@ import pandas as pd
 from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
 from freqbrdf.brdf import TEXTURES
 from freqbrdf.cameras import cameras_from_json
+from freqbrdf.figures import stress_figure
 from freqbrdf.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
 from freqbrdf.metrics import parameter_error_map
-from freqbrdf.plots import pyplot, save_figure
 from freqbrdf.stress import blocked_light, image_psnr, pair_table, pose_effect_table, region_table, stress_table
 from freqbrdf.tables import check_tidy, fmt, html_page, method_label, to_html, to_markdown
 
@@ -75,15 +75,15 @@ def main(smk, log):
         shadowed = blocked >= p.shadow_fraction
         log.info("%s: %d of %d observed texels lose >= %.0f%% of their light to the occluder", obj,
                  int(shadowed.sum()), len(blocked), 100 * p.shadow_fraction)
-        scored = [(f"{obj} / {env}", texels, entropy, error, shadowed)]
+        scored = [(f"{obj} / {env}", entropy, error, shadowed)]
         ref = p.references.get(obj)
         if ref is not None and ref[0] in index:
             # The control (same object, light and views, no occluder) on the same atlas texels: what
             # the region's error is without the occluder (lower texels are seen from fewer views).
             _, ref_texels, ref_entropy, ref_error = arrays[index[ref[0]]]
             ref_shadowed = np.isin(ref_texels, texels[shadowed])
-            scored.append((f"{ref[0]} / {ref[1]} (no occluder)", ref_texels, ref_entropy, ref_error, ref_shadowed))
-        for name, _, ent, err, mask in scored:
+            scored.append((f"{ref[0]} / {ref[1]} (no occluder)", ref_entropy, ref_error, ref_shadowed))
+        for name, ent, err, mask in scored:
             table = region_table(err, ent, mask)
             table.insert(0, "capture", name)
             regions.append(table.rename_axis("region").reset_index())
@@ -122,44 +122,6 @@ def main(smk, log):
         tmp.write_text(html_page("FreqBRDF: stress captures and pose sources", body))
     stress_figure(smk.output.figure, figure_rows, method_label(shown))
     log.info("%s", text)
-
-
-def atlas(resolution, texels, values):
-    """Per-texel values on the UV atlas, NaN where unobserved."""
-    image = np.full(resolution * resolution, np.nan)
-    image[texels] = values
-    return image.reshape(resolution, resolution)
-
-
-def stress_figure(path, rows, method):
-    """One row per stress capture: entropy, the method's per-texel error and, for an occluded
-    capture, the share of light the occluder blocks."""
-    plt = pyplot()
-    if not rows:
-        fig, ax = plt.subplots(figsize=(4, 1))
-        ax.axis("off")
-        ax.text(0.5, 0.5, "no stress captures in this configuration", ha="center", va="center")
-        save_figure(fig, path)
-        return
-    fig, axes = plt.subplots(len(rows), 3, figsize=(10, 3.2 * len(rows)), squeeze=False)
-    cmap = plt.get_cmap("turbo").with_extremes(bad="0.85")
-    vmax = max(float(np.nanpercentile(r["error"], 99)) for r in rows) or 1.0
-    titles = ["entropy", f"{method}: squared error", "light the occluder blocks"]
-    for r, (axs, row) in enumerate(zip(axes, rows)):
-        panels = [(row["entropy"], 1.0), (row["error"], vmax), (row["blocked"], 1.0)]
-        axs[0].set_ylabel(row["name"], fontsize=9)
-        for ax, title, (values, top) in zip(axs, titles, panels):
-            ax.set_xticks([])
-            ax.set_yticks([])
-            if values is None:
-                ax.set_frame_on(False)
-                continue
-            shown = ax.imshow(atlas(row["resolution"], row["texels"], values), cmap=cmap, vmin=0.0, vmax=top,
-                              interpolation="nearest")
-            if r == 0 or title == titles[2]:
-                ax.set_title(title, fontsize=9)
-            fig.colorbar(shown, ax=ax, fraction=0.046)
-    save_figure(fig, path)
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
