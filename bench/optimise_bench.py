@@ -1,10 +1,11 @@
 """Time, peak memory and accuracy of the gradient-descent estimator (freqbrdf.optimise).
 
 Timing cases (each in a fresh Python process, so its peak RSS is its own):
-`optimise` on 256x256 texels x 24 views, 150 iterations, the light at degree
+`optimise` on 256x256 texels x 24 views, 150 Adam iterations, the light at degree
 20 (config ``optimise.lmax``), grid start, for ``freq`` (four fits of the
 shadowed light: the grid start's, the first step's and two partial refits)
-and ``rh2001`` (one evaluation), with 2 and 1 threads. Issue 14's target:
+and ``rh2001`` (one evaluation), with 2 and 1 threads, and ``freq`` by the
+``lm`` solver (12 sweeps, refits every 4). Issue 14's target:
 ``freq`` in at most 1 s on 2 cores.
 Inputs are the real observations of ``results/observations/sphere/studio/gt``
 when they exist (read-only), else synthetic ones of the same shape.
@@ -15,13 +16,14 @@ the grid (the default), from 0.5 and from the spectrum-only estimate, next to
 the spectrum-only estimate itself.
 
 Sweep (``--sweep``): parameter MSE of ``freq`` for each setting of
-`SWEEP` on the given captures; run on the tuning set (config/tuning.yaml,
+`SWEEP` (the solvers included) on the given captures; run on the tuning set (config/tuning.yaml,
 README "Tuning set"), never on the captures the default run reports.
 
     python bench/optimise_bench.py                          # timing + accuracy on sphere/studio
     python bench/optimise_bench.py --captures sphere/studio torus/sunny
     python bench/optimise_bench.py --no-accuracy
     python bench/optimise_bench.py --sweep --captures die/museum die/overcast vase/museum vase/overcast
+    FREQBRDF_RESULTS=/path/to/clone/results python bench/optimise_bench.py --sweep ...  # results elsewhere
 
 Writes ``bench/out/optimise.tsv`` (timing), ``bench/out/optimise_accuracy.tsv``
 and ``bench/out/optimise_sweep.tsv``.
@@ -35,6 +37,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -49,13 +52,14 @@ from freqbrdf.methods import METHODS
 
 REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / "bench" / "out"
-RESULTS = REPO / "results"
+RESULTS = Path(os.environ.get("FREQBRDF_RESULTS", REPO / "results"))  # e.g. a clone that ran the tuning preset
 TIMING_CAPTURE = "sphere/studio"
 TIMING_CASES = {
-    # name: (method, workers)
-    "freq_w2": ("freq", 2),
-    "rh2001_w2": ("rh2001", 2),
-    "freq_w1": ("freq", 1),
+    # name: (method, workers, OptimiseSettings overrides)
+    "freq_w2": ("freq", 2, {}),
+    "freq_lm_w2": ("freq", 2, {"solver": "lm"}),
+    "rh2001_w2": ("rh2001", 2, {}),
+    "freq_w1": ("freq", 1, {}),
 }
 ACCURACY_METHODS = tuple(m for m, entry in METHODS.items() if "table4" in entry.paper_rows)  # the ablation
 LMAX = 20
@@ -76,6 +80,9 @@ SWEEP = {
     "lr 0.05, tv 0.1": {"lr": 0.05, "tv_weight": 0.1},
     "lr 0.05, tv 0.03, min_roughness auto": {"lr": 0.05, "tv_weight": 0.03, "min_roughness": 0.287},
     "lr 0.05, tv 0.03, start 0.5": {"lr": 0.05, "tv_weight": 0.03, "grid_start": False},
+    "lm, tv 0.03": {"solver": "lm", "tv_weight": 0.03},
+    "lm 20 sweeps, tv 0.03": {"solver": "lm", "tv_weight": 0.03, "sweeps": 20, "sweep_refit_every": 5},
+    "lm, tv 0.1": {"solver": "lm", "tv_weight": 0.1},
 }
 
 
@@ -144,9 +151,9 @@ def optimise_capture(data: dict, method: str, init: dict | None, lmax: int = LMA
 
 def run_timing(name: str) -> dict:
     """Run one timing case in this process; return its measurements."""
-    method, workers = TIMING_CASES[name]
+    method, workers, overrides = TIMING_CASES[name]
     data = load_capture(TIMING_CAPTURE) or synthetic_capture()
-    settings = {"workers": workers, "iterations": 150}
+    settings = {"workers": workers, "iterations": 150} | overrides
     optimise_capture(data, method, None, **settings)  # warm-up (imports, first page faults)
     start = time.perf_counter()
     _, curve = optimise_capture(data, method, None, **settings)
@@ -159,11 +166,12 @@ def run_timing(name: str) -> dict:
     return {
         "case": name,
         "method": method,
+        "solver": settings.get("solver", "adam"),
         "workers": workers,
         "texels": n_tex,
         "views": n_views,
         "observed_pairs": int((data["weight"] > 0).sum()),
-        "iterations": 150,
+        "steps": len(curve),
         "lmax": LMAX,
         "inputs": data["source"],
         "seconds": round(seconds, 2),

@@ -1,8 +1,9 @@
 rule optimise_svbrdf:
-    """Per-texel SVBRDF by Adam through the frequency-domain forward model; which
-    terms the model includes is the method's entry in freqbrdf.methods.METHODS
-    (freq: shadowing and masking; freq_paper: the light pre-filtered as in the
-    paper; freq_noshadow, freq_nomask, rh2001: the Table 4 ablation)."""
+    """Per-texel SVBRDF through the frequency-domain forward model, by Adam or
+    per-texel Levenberg-Marquardt (optimise.solver); which terms the model
+    includes is the method's entry in freqbrdf.methods.METHODS (freq: shadowing
+    and masking; freq_paper: the light pre-filtered as in the paper;
+    freq_noshadow, freq_nomask, rh2001: the Table 4 ablation)."""
     input:
         unpack(optimise_start),
         observations="results/observations/{object}/{env}/{poses}",

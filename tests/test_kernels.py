@@ -23,3 +23,15 @@ def test_degree_sums_are_per_degree_sums_of_the_expansion_times_real_sh(lmax: in
     np.testing.assert_allclose(out[pairs], expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
     untouched = np.setdiff1d(np.arange(n_pairs), pairs)
     assert np.isnan(out[untouched]).all()
+
+
+def test_small_cholesky_solve_matches_numpy() -> None:
+    rng = np.random.default_rng(12)
+    for _ in range(20):
+        m = rng.normal(size=(5, 5))
+        a = m @ m.T + 0.1 * np.eye(5)
+        rhs = rng.normal(size=5)
+        out = np.empty(5)
+        assert kernels._solve_spd5(a.copy(), rhs, out)
+        np.testing.assert_allclose(out, np.linalg.solve(a, rhs), rtol=1e-9, atol=1e-12)
+    assert not kernels._solve_spd5(-np.eye(5), rhs, out)  # not positive definite

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["set_threads", "degree_sums", "shadowing_factors", "l1_loss_gradient", "grid_search"]
+__all__ = ["set_threads", "degree_sums", "shadowing_factors", "l1_loss_gradient", "grid_search", "lm_sweep"]
 
 _INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
 _SQRT2 = np.sqrt(2.0)
@@ -178,6 +178,28 @@ def _masking(alpha, tan2, masking):  # pragma: no cover - compiled
     return g1, -g1 * g1 * alpha * tan2 / (2.0 * root)
 
 
+@numba.njit(cache=True, inline="always")
+def _schlick_fresnel(r0_dielectric, m, base, c5):  # pragma: no cover - compiled
+    """``F = R0 (1 - c5) + c5`` with ``R0 = r0_dielectric (1 - m) + m base`` and ``c5 = (1 - cos theta_o)^5``."""
+    return (r0_dielectric * (1.0 - m) + m * base) * (1.0 - c5) + c5
+
+
+@numba.njit(cache=True, inline="always")
+def _pair_terms(alpha, f, fd, light, n, tan2, masking, work):  # pragma: no cover - compiled
+    """Per channel of pair n: ``work[0] = G1m Spec``, ``work[1] = d(G1m Spec)/dalpha``."""
+    g1, dg1 = _masking(alpha, tan2[n], masking)
+    s0 = s1 = s2 = d0 = d1 = d2 = 0.0
+    for l in range(f.shape[0]):
+        s0 += f[l] * light[n, l, 0]
+        s1 += f[l] * light[n, l, 1]
+        s2 += f[l] * light[n, l, 2]
+        d0 += fd[l] * light[n, l, 0]
+        d1 += fd[l] * light[n, l, 1]
+        d2 += fd[l] * light[n, l, 2]
+    work[0, 0], work[0, 1], work[0, 2] = g1 * s0, g1 * s1, g1 * s2
+    work[1, 0], work[1, 1], work[1, 2] = dg1 * s0 + g1 * d0, dg1 * s1 + g1 * d1, dg1 * s2 + g1 * d2
+
+
 @numba.njit(parallel=True, cache=True, fastmath=True)
 def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
                       grad, loss, model):  # pragma: no cover - compiled
@@ -188,45 +210,34 @@ def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, a
     for blk in numba.prange((n_tex + _TEXELS - 1) // _TEXELS):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
-        work = np.empty((4, 3))  # per channel: sum of signs, of signs times the specular rise, Spec, dSpec
+        work = np.empty((2, 3))  # per channel: G1m Spec and its derivative in alpha (`_pair_terms`)
+        signs = np.empty((2, 3))  # per channel: sum of signs, of signs times the specular rise
         for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
             r = x[s, 3]
             m = x[s, 4]
             alpha = max(r * r, alpha_min)
             _lobe(alpha, f, fd)
-            work[:2] = 0.0
+            signs[:] = 0.0
             sum_d = 0.0
             total = 0.0
             for n in range(start[s], start[s + 1]):
                 c5 = schlick[n]
-                g1, dg1 = _masking(alpha, tan2[n], masking)
-                # six independent sums, the pair's terms read in memory order
-                s0 = s1 = s2 = d0 = d1 = d2 = 0.0
-                for l in range(n_deg):
-                    s0 += f[l] * light[n, l, 0]
-                    s1 += f[l] * light[n, l, 1]
-                    s2 += f[l] * light[n, l, 2]
-                    d0 += fd[l] * light[n, l, 0]
-                    d1 += fd[l] * light[n, l, 1]
-                    d2 += fd[l] * light[n, l, 2]
-                work[2, 0], work[2, 1], work[2, 2] = s0, s1, s2
-                work[3, 0], work[3, 1], work[3, 2] = d0, d1, d2
+                _pair_terms(alpha, f, fd, light, n, tan2, masking, work)
                 for c in range(3):
-                    spec = work[2, c]
-                    fresnel = (r0_dielectric * (1.0 - m) + m * x[s, c]) * (1.0 - c5) + c5
-                    value = (1.0 - m) * x[s, c] * e_pi[s, c] + fresnel * g1 * spec
+                    fresnel = _schlick_fresnel(r0_dielectric, m, x[s, c], c5)
+                    value = (1.0 - m) * x[s, c] * e_pi[s, c] + fresnel * work[0, c]
                     if write_model:
                         model[n, c] = value
                     res = value - radiance[n, c]
                     g = np.sign(res)
                     total += abs(res)
-                    work[0, c] += g
-                    work[1, c] += g * (1.0 - c5) * g1 * spec
-                    sum_d += g * fresnel * (spec * dg1 + g1 * work[3, c])
+                    signs[0, c] += g
+                    signs[1, c] += g * (1.0 - c5) * work[0, c]
+                    sum_d += g * fresnel * work[1, c]
             grad[s, 4] = 0.0
             for c in range(3):
-                grad[s, c] = (1.0 - m) * e_pi[s, c] * work[0, c] + m * work[1, c]
-                grad[s, 4] += -x[s, c] * e_pi[s, c] * work[0, c] + (x[s, c] - r0_dielectric) * work[1, c]
+                grad[s, c] = (1.0 - m) * e_pi[s, c] * signs[0, c] + m * signs[1, c]
+                grad[s, 4] += -x[s, c] * e_pi[s, c] * signs[0, c] + (x[s, c] - r0_dielectric) * signs[1, c]
             grad[s, 3] = sum_d * 2.0 * max(r, np.sqrt(alpha_min))
             loss[s] = total
 
@@ -359,3 +370,218 @@ def grid_search(
                  np.asarray(roughness, dtype=np.float64), np.asarray(metallic, dtype=np.float64),
                  int(np.diff(start).max(initial=0)), out)
     return out
+
+
+@numba.njit(cache=True, inline="always")
+def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
+                nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
+    """Objective of texel s at parameters ``xs``: its scaled L1 data term plus the TV terms of its
+    edges, the neighbours held at ``x``."""
+    cost = 0.0
+    if s < start.shape[0] - 1:
+        alpha = max(xs[3] * xs[3], alpha_min)
+        _lobe(alpha, f, fd)
+        m = xs[4]
+        for n in range(start[s], start[s + 1]):
+            _pair_terms(alpha, f, fd, light, n, tan2, masking, work)
+            c5 = schlick[n]
+            for c in range(3):
+                fresnel = _schlick_fresnel(r0_dielectric, m, xs[c], c5)
+                cost += abs((1.0 - m) * xs[c] * e_pi[s, c] + fresnel * work[0, c] - radiance[n, c])
+        cost *= data_scale
+    for k in range(nb_start[s], nb_start[s + 1]):
+        j = nb[k]
+        for q in range(5):
+            cost += tv_scale * abs(xs[q] - x[j, q])
+    return cost
+
+
+@numba.njit(cache=True, inline="always")
+def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
+    """Solve ``a out = rhs`` for a symmetric positive definite 5x5 ``a`` (Cholesky, in place on ``a``);
+    False if a pivot is not positive."""
+    for j in range(5):
+        d = a[j, j]
+        for k in range(j):
+            d -= a[j, k] * a[j, k]
+        if not d > 0.0:
+            return False
+        d = np.sqrt(d)
+        a[j, j] = d
+        for i in range(j + 1, 5):
+            v = a[i, j]
+            for k in range(j):
+                v -= a[i, k] * a[j, k]
+            a[i, j] = v / d
+    for i in range(5):
+        v = rhs[i]
+        for k in range(i):
+            v -= a[i, k] * out[k]
+        out[i] = v / a[i, i]
+    for i in range(4, -1, -1):
+        v = out[i]
+        for k in range(i + 1, 5):
+            v -= a[k, i] * out[k]
+        out[i] = v / a[i, i]
+    return True
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True)
+def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
+              nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
+              cost_out):  # pragma: no cover - compiled
+    n_deg = light.shape[1]
+    n_obs = start.shape[0] - 1
+    n = texels.shape[0]
+    for blk in numba.prange((n + _TEXELS - 1) // _TEXELS):
+        f = np.empty(n_deg)
+        fd = np.empty(n_deg)
+        work = np.empty((2, 3))
+        h = np.empty((5, 5))
+        a = np.empty((5, 5))
+        g = np.empty(5)
+        rhs = np.empty(5)
+        step = np.empty(5)
+        trial = np.empty(5)
+        diag = np.empty(5)
+        for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
+            s = texels[i]
+            h[:] = 0.0
+            g[:] = 0.0
+            cost = 0.0
+            if s < n_obs:
+                lo, hi = start[s], start[s + 1]
+                # IRLS floor relative to the texel's own radiance, so that it means the same in any units
+                level = 0.0
+                for p in range(lo, hi):
+                    level += abs(radiance[p, 0]) + abs(radiance[p, 1]) + abs(radiance[p, 2])
+                floor = max(irls_floor * level / (3.0 * (hi - lo)), 1e-12)
+                r = x[s, 3]
+                m = x[s, 4]
+                alpha = max(r * r, alpha_min)
+                dalpha = 2.0 * max(r, np.sqrt(alpha_min))
+                _lobe(alpha, f, fd)
+                for p in range(lo, hi):
+                    _pair_terms(alpha, f, fd, light, p, tan2, masking, work)
+                    c5 = schlick[p]
+                    for c in range(3):
+                        spec = work[0, c]
+                        fresnel = _schlick_fresnel(r0_dielectric, m, x[s, c], c5)
+                        res = (1.0 - m) * x[s, c] * e_pi[s, c] + fresnel * spec - radiance[p, c]
+                        cost += abs(res)
+                        # Jacobian row of this residual: base_c, roughness, metallic (other bases 0)
+                        j_base = (1.0 - m) * e_pi[s, c] + m * (1.0 - c5) * spec
+                        j_r = fresnel * work[1, c] * dalpha
+                        j_m = -x[s, c] * e_pi[s, c] + (x[s, c] - r0_dielectric) * (1.0 - c5) * spec
+                        sg = data_scale * np.sign(res)
+                        w = data_scale / max(abs(res), floor)
+                        g[c] += sg * j_base
+                        g[3] += sg * j_r
+                        g[4] += sg * j_m
+                        h[c, c] += w * j_base * j_base
+                        h[c, 3] += w * j_base * j_r
+                        h[c, 4] += w * j_base * j_m
+                        h[3, 3] += w * j_r * j_r
+                        h[3, 4] += w * j_r * j_m
+                        h[4, 4] += w * j_m * j_m
+                cost *= data_scale
+            for k in range(nb_start[s], nb_start[s + 1]):
+                j = nb[k]
+                for q in range(5):
+                    d = x[s, q] - x[j, q]
+                    cost += tv_scale * abs(d)
+                    g[q] += tv_scale * np.sign(d)
+                    h[q, q] += tv_scale / max(abs(d), tv_floor)
+            for q in range(5):
+                for q2 in range(q):
+                    h[q, q2] = h[q2, q]
+            cost_out[i] = cost
+            for q in range(5):
+                diag[q] = h[q, q]
+            lam_s = lam[s]
+            for _ in range(tries):
+                # bounds: a parameter at a bound that the gradient pushes outwards stays there
+                for q in range(5):
+                    for q2 in range(5):
+                        a[q, q2] = h[q, q2]
+                    a[q, q] += lam_s * diag[q] + 1e-12
+                    rhs[q] = -g[q]
+                for q in range(5):
+                    if (x[s, q] <= lower[q] and g[q] > 0.0) or (x[s, q] >= upper[q] and g[q] < 0.0):
+                        for q2 in range(5):
+                            a[q, q2] = 0.0
+                            a[q2, q] = 0.0
+                        a[q, q] = 1.0
+                        rhs[q] = 0.0
+                if not _solve_spd5(a, rhs, step):
+                    lam_s *= 10.0
+                    continue
+                for q in range(5):
+                    trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
+                new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
+                                  r0_dielectric, nb_start, nb, x, data_scale, tv_scale, f, fd, work)
+                if new < cost:
+                    for q in range(5):
+                        x[s, q] = trial[q]
+                    lam_s = max(lam_s * 0.3, 1e-6)
+                    break
+                lam_s = min(lam_s * 10.0, 1e8)
+            lam[s] = lam_s
+
+
+def lm_sweep(
+    x: np.ndarray, texels: np.ndarray, start: np.ndarray, light: np.ndarray, radiance: np.ndarray,
+    schlick: np.ndarray, tan2: np.ndarray, e_pi: np.ndarray, masking: bool, alpha_min: float,
+    r0_dielectric: float, nb_start: np.ndarray, nb: np.ndarray, data_scale: float, tv_scale: float,
+    lower: np.ndarray, upper: np.ndarray, irls_floor: float, tv_floor: float, lam: np.ndarray, tries: int,
+) -> np.ndarray:
+    """One damped Gauss-Newton (Levenberg-Marquardt) step per texel of ``texels`` on the L1 + TV objective.
+
+    Texel s minimises its own part of the objective with its TV neighbours
+    held fixed: ``data_scale sum_{n, c} |B - B_obs| + tv_scale sum_{j, q} |x_sq - x_jq|``
+    (model of `l1_loss_gradient`). Both absolute values are majorised by
+    quadratics at the current point (iteratively reweighted least squares:
+    weight ``1 / max(|r|, floor)``, the floor ``irls_floor`` times the
+    texel's mean observed radiance for the data, ``tv_floor`` for TV), whose
+    Gauss-Newton system ``(H + lam diag(H)) step = -grad`` is solved with
+    the parameters that sit on a bound and are pushed outwards held there;
+    the step, clipped to ``[lower, upper]``, is taken only if it lowers the
+    texel's true objective, else ``lam`` grows tenfold (up to ``tries``
+    times); an accepted step shrinks it by 0.3. When no two of ``texels``
+    are neighbours (one colour of the atlas's checkerboard) the updates are
+    exact block coordinate descent: the total objective never rises, and
+    the result does not depend on the number of threads.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Shape ``(S, 5)``, float64: parameters, updated in place at ``texels``.
+    texels : numpy.ndarray
+        Shape ``(U,)``, int64: rows of ``x`` to update.
+    start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric
+        As for `l1_loss_gradient`; ``start`` covers the first ``len(start) - 1``
+        rows of ``x`` (the observed texels), the others have no data term.
+    nb_start, nb : numpy.ndarray
+        Shapes ``(S + 1,)`` and ``(E,)``, int64: the TV neighbours of row s
+        are ``nb[nb_start[s]:nb_start[s + 1]]``.
+    data_scale, tv_scale : float
+        Weights of the data term's sum and of each TV edge.
+    lower, upper : numpy.ndarray
+        Shape ``(5,)``: bounds of each parameter.
+    irls_floor, tv_floor : float
+        Floors of the reweighting (above).
+    lam : numpy.ndarray
+        Shape ``(S,)``: damping per texel, updated in place.
+    tries : int
+        Attempts per texel.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(U,)``: each texel's objective before its step.
+    """
+    cost = np.empty(texels.shape[0])
+    _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
+              nb_start, nb, float(data_scale), float(tv_scale), lower, upper, float(irls_floor), float(tv_floor),
+              lam, int(tries), cost)
+    return cost

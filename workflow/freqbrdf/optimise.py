@@ -49,9 +49,22 @@ TV a mean absolute step per adjacency, like the data term a mean, so
 ``tv_weight`` keeps its meaning across texture resolutions and atlas
 coverage. Both absolute values use ``sign(0) = 0`` as their derivative.
 
-Gradients are analytic (see `loss_and_gradient`); Adam (`adam_step`) updates
-all texels and views in one batch and clamps the parameters to [0, 1] after
-each step. Without shadowing the fitted light does not depend on alpha, so
+Gradients are analytic (see `loss_and_gradient`). Two solvers minimise the
+objective (``OptimiseSettings.solver``):
+
+- ``adam`` (default, as the authors' code): Adam (`adam_step`) updates all
+  texels and views in one batch and clamps the parameters to [0, 1] after
+  each step;
+- ``lm``: per-texel Levenberg-Marquardt (:func:`freqbrdf.kernels.lm_sweep`).
+  The 5 unknowns of a texel couple to other texels only through TV, so
+  each sweep updates one colour of the atlas's checkerboard with the other
+  held fixed, then the other colour (block coordinate descent); both
+  absolute values are reweighted into least squares (IRLS), and a step is
+  kept only if it lowers the texel's objective. It reaches a lower
+  objective in 12 sweeps than Adam in 150 steps, but not a lower parameter
+  error (README "Second-order solver").
+
+Without shadowing the fitted light does not depend on alpha, so
 ``freq_noshadow`` and ``rh2001`` fit it once.
 
 Layout and cost
@@ -77,13 +90,14 @@ from .artefacts import Observations
 from .brdf import ALPHA_MIN, R0_DIELECTRIC, TEXTURES, alpha_from_roughness, tan2_theta
 from .light import LightQuadrature, irradiance, light_quadrature, shadowed_light
 from .methods import get_method
-from .kernels import degree_sums, grid_search, l1_loss_gradient, set_threads
+from .kernels import degree_sums, grid_search, l1_loss_gradient, lm_sweep, set_threads
 from .sh import recurrence_tables
 from .shfit import mirror_directions
 from .validation import check_finite, check_int, check_shape
 
 __all__ = [
     "PARAM_COLUMNS",
+    "SOLVERS",
     "OptimiseSettings",
     "estimate_light",
     "Problem",
@@ -104,6 +118,7 @@ __all__ = [
 PARAM_COLUMNS = ("base_r", "base_g", "base_b", "roughness", "metallic")  # columns of a packed (T, 5) array
 _N_PARAMS = len(PARAM_COLUMNS)
 _DTYPES = ("float32", "float64")
+SOLVERS = ("adam", "lm")
 
 
 # --------------------------------------------------------------------------
@@ -123,6 +138,22 @@ class OptimiseSettings:
 
     Attributes
     ----------
+    solver : {"adam", "lm"}
+        ``lm``: per-texel Levenberg-Marquardt on reweighted least squares,
+        the atlas's two checkerboard colours in turn (`lm_sweep`); ``adam``:
+        Adam on all texels at once (the authors' code).
+    sweeps : int
+        ``lm``: sweeps over both colours (one damped Gauss-Newton step per texel each).
+    sweep_refit_every : int
+        ``lm``: sweeps between refits of the shadowed light.
+    sweep_tolerance : float
+        ``lm``: stop once a sweep lowers the objective by less than this
+        fraction (after the last refit).
+    irls_floor, tv_floor : float
+        ``lm``: floors of the reweighting of the data residuals (relative
+        to each texel's mean radiance) and of the TV differences.
+    damping : float
+        ``lm``: initial Marquardt damping of every texel.
     iterations : int
         Adam steps (one full batch each).
     grid_start : bool
@@ -157,6 +188,13 @@ class OptimiseSettings:
         Adam moments are always float64; the loss is accumulated in float64).
     """
 
+    solver: str = "adam"
+    sweeps: int = 12
+    sweep_refit_every: int = 4
+    sweep_tolerance: float = 1e-4
+    irls_floor: float = 1e-2
+    tv_floor: float = 1e-2
+    damping: float = 1e-2
     iterations: int = 150
     grid_start: bool = True
     grid_roughness: int = 21
@@ -172,6 +210,14 @@ class OptimiseSettings:
     dtype: str = "float32"
 
     def __post_init__(self) -> None:
+        if self.solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
+        check_int(self.sweeps, "sweeps", 0)
+        check_int(self.sweep_refit_every, "sweep_refit_every", 1)
+        for name in ("sweep_tolerance", "irls_floor", "tv_floor", "damping"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
         check_int(self.iterations, "iterations", 0)
         check_int(self.grid_roughness, "grid_roughness", 2)
         check_int(self.grid_metallic, "grid_metallic", 2)
@@ -197,7 +243,8 @@ class OptimiseSettings:
         """Settings from config ``optimise`` (``min_roughness: auto`` is `identifiable_roughness`
         of ``lmax``; ``init: grid`` starts from the grid)."""
         bound = config["min_roughness"]
-        return cls(iterations=config["iterations"], lr=config["lr"], refit_every=config["refit_every"],
+        return cls(solver=config["solver"], sweeps=config["sweeps"], sweep_refit_every=config["sweep_refit_every"],
+                   iterations=config["iterations"], lr=config["lr"], refit_every=config["refit_every"],
                    tv_weight=config["tv_weight"], workers=workers, grid_start=config["init"] == "grid",
                    min_roughness=identifiable_roughness(config["lmax"]) if bound == "auto" else float(bound))
 
@@ -318,6 +365,13 @@ class Problem:
     tv_operator, tv_adjoint : scipy.sparse.csr_matrix
         Shapes ``(M, T)`` and ``(T, M)``: ``x_i - x_j`` of each neighbour pair
         (internal order) and its transpose.
+    nb_start, nb : numpy.ndarray
+        Shapes ``(T + 1,)`` and ``(2 M,)``, int64: the neighbours of internal
+        texel s are ``nb[nb_start[s]:nb_start[s + 1]]`` (internal order).
+    colours : tuple of numpy.ndarray
+        The internal texels of each colour of the atlas's checkerboard
+        (``(i + j) % 2`` of atlas row i, column j): no two of one colour are
+        neighbours.
     dtype : numpy.dtype
         Precision of the per-observation arrays of the loss.
     """
@@ -342,6 +396,9 @@ class Problem:
     irradiance_pi: np.ndarray
     tv_operator: sparse.csr_matrix
     tv_adjoint: sparse.csr_matrix
+    nb_start: np.ndarray
+    nb: np.ndarray
+    colours: tuple[np.ndarray, np.ndarray]
     dtype: np.dtype
 
     @property
@@ -361,6 +418,14 @@ def _difference_operator(neighbours: np.ndarray, n_texels: int) -> sparse.csr_ma
     rows = np.repeat(np.arange(m), 2)
     vals = np.tile([1.0, -1.0], m)
     return sparse.csr_matrix((vals, (rows, neighbours.ravel())), shape=(m, n_texels))
+
+
+def _adjacency(pairs: np.ndarray, n_texels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Neighbour lists (CSR: start (T + 1,), index (2 M,)) of undirected pairs (M, 2)."""
+    both = np.concatenate([pairs, pairs[:, ::-1]])
+    both = both[np.lexsort((both[:, 1], both[:, 0]))]
+    start = np.concatenate([[0], np.cumsum(np.bincount(both[:, 0], minlength=n_texels))])
+    return start.astype(np.int64), both[:, 1].astype(np.int64)
 
 
 def _check_inputs(obs: Observations, irradiance: np.ndarray) -> np.ndarray:
@@ -456,6 +521,8 @@ def build_problem(obs: Observations, irradiance: np.ndarray, dtype: str = "float
     position[perm] = np.arange(n_tex)
     neighbours = atlas_neighbours(t, resolution)
     tv_op = _difference_operator(position[neighbours], n_tex)
+    nb_start, nb = _adjacency(position[neighbours], n_tex)
+    parity = (t[perm] // resolution + t[perm] % resolution) % 2
     return Problem(
         n_texels=n_tex,
         n_views=n_views,
@@ -477,6 +544,9 @@ def build_problem(obs: Observations, irradiance: np.ndarray, dtype: str = "float
         irradiance_pi=e[observed] / np.pi,
         tv_operator=tv_op,
         tv_adjoint=tv_op.T.tocsr(),
+        nb_start=nb_start,
+        nb=nb,
+        colours=(np.nonzero(parity == 0)[0].astype(np.int64), np.nonzero(parity == 1)[0].astype(np.int64)),
         dtype=ftype,
     )
 
@@ -866,7 +936,7 @@ def optimise(
     method : str
         A method of rule ``optimise_svbrdf`` in :data:`freqbrdf.methods.METHODS`.
     settings : OptimiseSettings
-        Optimiser and SH fit settings.
+        Solver and SH fit settings.
 
     Returns
     -------
@@ -874,15 +944,18 @@ def optimise(
         ``base_color`` (T, 3), ``roughness`` (T,), ``metallic`` (T,), float64
         in [0, 1]. Texels without observations move only through TV.
     loss_curve : numpy.ndarray
-        Shape ``(iterations,)``: the objective at the start of each iteration
-        (after that iteration's refit, if any, so it may jump at refits).
+        The objective at the start of each Adam iteration or LM sweep
+        (after that iteration's refit, if any, so it may jump at refits);
+        an LM run that meets ``sweep_tolerance`` early has fewer entries
+        than ``sweeps``.
     """
     shadowing, masking = _check_method(method)
     if not isinstance(settings, OptimiseSettings):
         raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
     problem = build_problem(obs, irradiance, settings.dtype)
     xp = _start(problem, light, init, shadowing, masking, settings)[problem.perm]  # internal order (see Problem)
-    xp, curve = _descend(xp, problem, light, shadowing, masking, settings)
+    descend = _descend_lm if settings.solver == "lm" else _descend
+    xp, curve = descend(xp, problem, light, shadowing, masking, settings)
     x = np.empty_like(xp)
     x[problem.perm] = xp
     return unpack_params(x), curve
@@ -904,6 +977,67 @@ def _start(
             settings.workers,
         )
     return np.full((problem.n_texels, _N_PARAMS), 0.5)
+
+
+class _ShadowedLight:
+    """The light terms of the observations, refitted for the texels whose roughness moved."""
+
+    def __init__(self, xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool,
+                 settings: OptimiseSettings):
+        self.problem, self.light, self.shadowing, self.settings = problem, light, shadowing, settings
+        self.roughness = np.empty(problem.n_texels)
+        self.roughness[problem.perm] = xp[:, 3]
+        self.terms = light_terms(self.roughness, problem, shadowing, light, settings.workers)
+        self.fitted = self.roughness[problem.observed]  # roughness each texel's light was fitted at
+
+    def refit(self, xp: np.ndarray) -> int:
+        """Refit the texels that moved by more than ``refit_tolerance``; returns how many.
+        Without shadowing the fitted light does not depend on alpha: the first fit is exact."""
+        if not self.shadowing:
+            return 0
+        self.roughness[self.problem.perm] = xp[:, 3]
+        now = self.roughness[self.problem.observed]
+        slots = np.nonzero(np.abs(now - self.fitted) > self.settings.refit_tolerance)[0]
+        if slots.size:
+            refit_light(self.terms, self.roughness, self.problem, self.light, slots, self.settings.workers)
+            self.fitted[slots] = now[slots]
+        return int(slots.size)
+
+
+def _descend_lm(
+    xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool,
+    settings: OptimiseSettings,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Levenberg-Marquardt sweeps from ``xp`` (internal order; `freqbrdf.kernels.lm_sweep`), refitting
+    the shadowed light every ``sweep_refit_every`` sweeps; returns the parameters and the objective
+    at the start of each sweep.
+
+    Each sweep updates the texels of one checkerboard colour with the other's held fixed, then the
+    other colour: block coordinate descent, so the objective does not rise between refits. The
+    objective is the one Adam minimises (`loss_and_gradient`), L1 data term and TV alike.
+    """
+    xp = xp.copy()
+    xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
+    set_threads(settings.workers)
+    lg = _ShadowedLight(xp, problem, light, shadowing, settings)
+    lower = np.array([0.0, 0.0, 0.0, settings.min_roughness, 0.0])
+    upper = np.ones(_N_PARAMS)
+    lam = np.full(problem.n_texels, settings.damping)
+    n_edges = max(problem.nb.shape[0] // 2, 1)
+    curve: list[float] = []
+    last_refit = 0
+    for sweep in range(settings.sweeps):
+        if sweep and sweep % settings.sweep_refit_every == 0 and lg.refit(xp):
+            last_refit = sweep
+        curve.append(_loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight)[0])
+        if sweep > last_refit and curve[-2] - curve[-1] < settings.sweep_tolerance * curve[-2]:
+            break
+        for texels in problem.colours:
+            lm_sweep(xp, texels, problem.start, lg.terms, problem.radiance, problem.schlick, problem.tan2,
+                     problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, problem.nb_start, problem.nb,
+                     1.0 / (3.0 * problem.n_pairs), settings.tv_weight / n_edges, lower, upper,
+                     settings.irls_floor, settings.tv_floor, lam, 4)
+    return xp, np.asarray(curve)
 
 
 def _descend(

@@ -29,7 +29,8 @@ def main(smk, log):
              opt["lmax"], "a' = %.3f" % obs.a_prime if get_method(smk.wildcards.method).prefiltered else "none",
              len(light.directions), len(texels), time.perf_counter() - start)
     params, curve = optimise(obs, e, light, init=init, method=smk.wildcards.method, settings=settings)
-    log.info("%s: %d iterations in %.1f s, loss %.4g -> %.4g", smk.wildcards.method, len(curve),
+    log.info("%s: %d %s in %.1f s, loss %.4g -> %.4g", smk.wildcards.method, len(curve),
+             "Adam steps" if settings.solver == "adam" else "LM sweeps",
              time.perf_counter() - start, curve[0], curve[-1])
 
     with atomic_directory(smk.output.estimate) as tmp:
