@@ -89,15 +89,6 @@ def test_likelihood_entropy_of_two_grid_points_is_the_binary_entropy() -> None:
     np.testing.assert_allclose(ea.likelihood_entropy(d, 0.03), grid_entropy(d[:, :, None, :], 0.03).min(axis=1))
 
 
-def test_pearson_matches_numpy_and_names_a_length_mismatch() -> None:
-    rng = np.random.default_rng(1)
-    a, b = rng.random(50), rng.random(50)
-    np.testing.assert_allclose(ea.pearson(a, 2 * a + b), np.corrcoef(a, 2 * a + b)[0, 1])
-    assert np.isnan(ea.pearson(np.ones(4), a[:4]))
-    with pytest.raises(ValueError, match="differ in length"):
-        ea.pearson(a, b[:3])
-
-
 # ---------------------------------------------------------------------------
 # the two renderers of the grid, on a sphere under a constant environment
 # ---------------------------------------------------------------------------

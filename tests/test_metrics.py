@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from freqbrdf.metrics import parameter_mse
+from freqbrdf.metrics import parameter_mse, pearson
 
 
 def _svbrdf(value: float, r: int = 4):
@@ -376,3 +376,12 @@ def test_scored_pixels_keeps_full_coverage_read_from_a_png():
     coverage = np.array([[255, 254], [0, 128]]) / 255.0
     assert scored_pixels(coverage, 1.0).tolist() == [[True, False], [False, False]]
     assert scored_pixels(coverage, 0.5).tolist() == [[True, True], [False, True]]
+
+
+def test_pearson_matches_numpy_and_names_a_length_mismatch() -> None:
+    rng = np.random.default_rng(1)
+    a, b = rng.random(50), rng.random(50)
+    np.testing.assert_allclose(pearson(a, 2 * a + b), np.corrcoef(a, 2 * a + b)[0, 1])
+    assert np.isnan(pearson(np.ones(4), a[:4]))
+    with pytest.raises(ValueError, match="differ in length"):
+        pearson(a, b[:3])

@@ -317,13 +317,3 @@ def timed(evaluate: Callable[[], np.ndarray]) -> tuple[np.ndarray, float]:
     start = time.perf_counter()
     value = evaluate()
     return value, time.perf_counter() - start
-
-
-def pearson(a: np.ndarray, b: np.ndarray) -> float:
-    """Pearson's r of two equally long samples; NaN if either is constant."""
-    a, b = np.asarray(a, dtype=np.float64).ravel(), np.asarray(b, dtype=np.float64).ravel()
-    if a.shape != b.shape:
-        raise ValueError(f"samples differ in length: {a.size} and {b.size}")
-    a, b = a - a.mean(), b - b.mean()
-    norm = np.sqrt((a * a).sum() * (b * b).sum())
-    return float((a * b).sum() / norm) if norm > 0 else float("nan")

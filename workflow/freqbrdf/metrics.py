@@ -4,7 +4,10 @@ style), and correlation of the uncertainty with the error."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
+from scipy.stats import ConstantInputWarning, pearsonr
 
 from .brdf import R0_DIELECTRIC, TEXTURES, alpha_from_roughness, smith_g1, tan2_theta
 from .colour import to_srgb
@@ -592,3 +595,13 @@ def time_to_reach(elapsed_s: np.ndarray, mse: np.ndarray, target: float) -> floa
         return float(t[0])
     # between sample i - 1 (above the target) and i (at or below it)
     return float(t[i - 1] + (t[i] - t[i - 1]) * (e[i - 1] - target) / (e[i - 1] - e[i]))
+
+
+def pearson(a: np.ndarray, b: np.ndarray) -> float:
+    """Pearson's r of two equally long samples (`scipy.stats.pearsonr`); NaN if either is constant."""
+    a, b = np.asarray(a, dtype=np.float64).ravel(), np.asarray(b, dtype=np.float64).ravel()
+    if a.shape != b.shape:
+        raise ValueError(f"samples differ in length: {a.size} and {b.size}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConstantInputWarning)
+        return float(pearsonr(a, b).statistic)

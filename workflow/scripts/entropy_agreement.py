@@ -7,11 +7,12 @@ import numpy as np
 
 from freqbrdf.artefacts import ShFit, read_observations, read_sh_fit
 from freqbrdf.entropy_agreement import (Pairs, angular_radiance, grid_objective, likelihood_entropy, material_grid,
-                                        mitsuba_radiance, pearson, sample_texels, texel_sample, timed,
+                                        mitsuba_radiance, sample_texels, texel_sample, timed,
                                         uniform_material_scene)
 from freqbrdf.figures import entropy_agreement_figure
 from freqbrdf.io import atomic_path, read_exr, write_json
 from freqbrdf.logs import run_script
+from freqbrdf.metrics import pearson
 from freqbrdf.mitsuba_setup import setup_mitsuba
 from freqbrdf.optimise import estimate_light
 from freqbrdf.spectrum import search_fit

@@ -4,13 +4,11 @@ Every path comes from ``snakemake.input``; ``snakemake.params`` says what each
 input list holds, in the same order (see rules/evaluate.smk).
 """
 
-import warnings
 from functools import cache
 from itertools import accumulate
 from pathlib import Path
 
 import pandas as pd
-from scipy.stats import ConstantInputWarning, pearsonr
 
 from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
 from freqbrdf.brdf import TEXTURES
@@ -18,7 +16,7 @@ from freqbrdf.cameras import cameras_from_json
 from freqbrdf.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
-from freqbrdf.metrics import (base_color_si_scores, brdf_log_rmse, parameter_error_map, parameter_mse,
+from freqbrdf.metrics import (base_color_si_scores, brdf_log_rmse, parameter_error_map, parameter_mse, pearson,
                              relight_scores, scored_pixels, time_to_reach)
 
 COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
@@ -29,13 +27,6 @@ def keyed(keys, paths, per=1):
     if len(paths) != per * len(keys):
         raise ValueError(f"metrics: {len(paths)} input paths for {len(keys)} keys x {per}")
     return {tuple(k): (paths[i * per] if per == 1 else list(paths[i * per : (i + 1) * per])) for i, k in enumerate(keys)}
-
-
-def correlation(x, y):
-    """Pearson's r; NaN when either sample is constant (undefined)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConstantInputWarning)
-        return float(pearsonr(x, y).statistic)
 
 
 def parameter_rows(smk):
@@ -63,7 +54,7 @@ def parameter_rows(smk):
         if method in p.entropy_methods:
             entropy = entropy_atlas((obj, env, poses))
             error = parameter_error_map(truth(obj), estimate).ravel()
-            rows.append(key | dict(metric="pearson_entropy_error", value=correlation(entropy[texels], error[texels])))
+            rows.append(key | dict(metric="pearson_entropy_error", value=pearson(entropy[texels], error[texels])))
     return rows
 
 
