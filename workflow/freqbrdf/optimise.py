@@ -991,8 +991,9 @@ class _ShadowedLight:
         self.fitted = self.roughness[problem.observed]  # roughness each texel's light was fitted at
 
     def refit(self, xp: np.ndarray) -> int:
-        """Refit the texels that moved by more than ``refit_tolerance``; returns how many.
-        Without shadowing the fitted light does not depend on alpha: the first fit is exact."""
+        """Refit the texels that moved by more than ``refit_tolerance`` since their last fit (most
+        stay near their start); returns how many. Without shadowing the fitted light does not
+        depend on alpha: the first fit is exact."""
         if not self.shadowing:
             return 0
         self.roughness[self.problem.perm] = xp[:, 3]
@@ -1018,6 +1019,8 @@ def _descend_lm(
     """
     xp = xp.copy()
     xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
+    if not settings.sweeps:
+        return xp, np.empty(0)
     set_threads(settings.workers)
     lg = _ShadowedLight(xp, problem, light, shadowing, settings)
     lower = np.array([0.0, 0.0, 0.0, settings.min_roughness, 0.0])
@@ -1044,32 +1047,21 @@ def _descend(
     xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool,
     settings: OptimiseSettings,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Adam from ``xp`` (internal order), refitting the shadowed light as roughness moves;
+    """Adam from ``xp`` (internal order), refitting the shadowed light every ``refit_every`` steps;
     returns the parameters and the loss at the start of each iteration."""
     xp = xp.copy()
     xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
+    if not settings.iterations:
+        return xp, np.empty(0)
     m1 = np.zeros_like(xp)
     m2 = np.zeros_like(xp)
     curve = np.empty(settings.iterations)
-    roughness = np.empty(problem.n_texels)
-    flat: np.ndarray | None = None
-    fitted = np.full(problem.n_observed, np.nan)  # roughness each texel's shadowed light was fitted at
     set_threads(settings.workers)
+    lg = _ShadowedLight(xp, problem, light, shadowing, settings)
     for it in range(settings.iterations):
-        # without shadowing the fitted light does not depend on alpha: one fit is exact
-        if flat is None or (shadowing and it % settings.refit_every == 0):
-            roughness[problem.perm] = xp[:, 3]
-            if flat is None:
-                flat = light_terms(roughness, problem, shadowing, light, settings.workers)
-                fitted[:] = roughness[problem.observed]
-            else:
-                # only texels whose roughness moved since their last fit (most stay near the start)
-                now = roughness[problem.observed]
-                slots = np.nonzero(np.abs(now - fitted) > settings.refit_tolerance)[0]
-                if slots.size:
-                    refit_light(flat, roughness, problem, light, slots, settings.workers)
-                    fitted[slots] = now[slots]
-        curve[it], grad = _loss_and_gradient(xp, problem, flat, masking, settings.tv_weight)
+        if it and it % settings.refit_every == 0:
+            lg.refit(xp)
+        curve[it], grad = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight)
         xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
         xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     return xp, curve
