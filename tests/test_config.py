@@ -67,6 +67,8 @@ def test_shipped_configs_validate(repo, schema, default, preset):
          r"config key stress_captures\.odd\.occluder\.height: -0\.5 is greater than the maximum of -1"),
         (lambda c: c["envs"]["studio"].update(blur=-1), r"config key envs\.studio\.blur: -1 is less than the minimum"),
         (lambda c: c["poses"].update(compare=["sfm"]), r"config key poses\.compare\.0: 'sfm' is not one of"),
+        (lambda c: c["optimise"].update(solver="newton"), r"config key optimise\.solver: 'newton' is not one of \['adam', 'lm'\]"),
+        (lambda c: c["optimise"].update(sweeps=0), r"config key optimise\.sweeps: 0 is less than the minimum of 1"),
     ],
 )
 def test_mistakes_give_one_line_naming_the_key(schema, default, edit, message):
@@ -133,3 +135,14 @@ def test_size_factor_is_one_on_the_default_and_grows_with_the_work(repo, default
     assert size_factor(paper, "agreement") == pytest.approx(100 / 24 * 1024 / 256 * 16 / 8)
     with pytest.raises(ValueError, match="size kind"):
         size_factor(default, "voxels")
+
+
+def test_optimise_settings_follow_the_config(default):
+    from freqbrdf.optimise import OptimiseSettings, identifiable_roughness
+
+    opt = default["optimise"] | {"solver": "lm", "sweeps": 7, "sweep_refit_every": 3, "min_roughness": "auto"}
+    settings = OptimiseSettings.from_config(opt, workers=2)
+    assert (settings.solver, settings.sweeps, settings.sweep_refit_every, settings.workers) == ("lm", 7, 3, 2)
+    assert settings.min_roughness == identifiable_roughness(opt["lmax"])
+    assert (settings.iterations, settings.lr, settings.tv_weight) == (opt["iterations"], opt["lr"], opt["tv_weight"])
+    assert OptimiseSettings.from_config(default["optimise"]).solver == "adam"
