@@ -345,6 +345,12 @@ def test_threads_do_not_change_results() -> None:
     np.testing.assert_array_equal(start, op.grid_start(problem, light, True, np.linspace(0, 1, 5),
                                                        np.linspace(0, 1, 3), workers=2))
     np.testing.assert_array_equal(light, op.light_terms(x[:, 3], problem, True, scene["light"], workers=2))
+    obs = observations(scene, render(scene, params, "freq") * 1.1)
+    lm = [op.optimise(obs, scene["irradiance"], scene["light"], method="freq",
+                      settings=op.OptimiseSettings(solver="lm", sweeps=4, sweep_refit_every=2, workers=w))
+          for w in (1, 2)]
+    for k in TEXTURES:
+        np.testing.assert_array_equal(lm[0][0][k], lm[1][0][k])
 
 
 # --------------------------------------------------------------------------
@@ -438,6 +444,29 @@ def test_lm_sweep_is_block_coordinate_descent(small: dict) -> None:
             assert total <= previous * (1 + 1e-12)
             previous = total
     assert previous < 0.8 * first
+
+
+def test_lm_converges_quadratically_from_near_the_truth(capture: tuple[dict, dict]) -> None:
+    """Damped Gauss-Newton on noise-free observations: each sweep from 1e-3 off divides the error
+    about a hundredfold (median 4e-12 after four, the worst texel 4e-7), which needs the exact
+    Jacobian of the model (with a wrong entry a step is rejected or the error shrinks linearly)."""
+    scene, truth = capture
+    truth = {"base_color": np.clip(truth["base_color"], 0.05, 0.95), "roughness": truth["roughness"],
+             "metallic": np.clip(truth["metallic"], 0.05, 0.95)}
+    x_true = op.pack_params(truth, 200)
+    problem = problem_of(scene)
+    light = terms(scene, problem, truth["roughness"], True)  # held fixed, as between refits
+    problem = problem_of(scene, op.forward(x_true, problem, light, True))
+    rng = np.random.default_rng(14)
+    xp = (x_true + 1e-3 * rng.choice([-1.0, 1.0], x_true.shape))[problem.perm]
+    lam = np.full(200, 1e-2)
+    for _ in range(4):
+        for texels in problem.colours:
+            kernels.lm_sweep(xp, texels, problem.start, light, problem.radiance, problem.schlick, problem.tan2,
+                             problem.irradiance_pi, True, ALPHA_MIN, R0_DIELECTRIC, problem.nb_start, problem.nb,
+                             1.0 / (3.0 * problem.n_pairs), 0.0, np.zeros(5), np.ones(5), 1e-2, 1e-2, lam, 4)
+    error = np.abs(xp - x_true[problem.perm]).max(axis=1)
+    assert np.median(error) < 1e-10 and error.max() < 1e-5
 
 
 @pytest.mark.parametrize("kw", [{"iterations": 20, "refit_every": 7}, {"solver": "lm", "sweeps": 6, "sweep_refit_every": 2}])

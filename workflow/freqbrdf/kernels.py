@@ -25,6 +25,10 @@ _INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
 _SQRT2 = np.sqrt(2.0)
 _BLOCK = 256  # pairs per parallel iteration (one SH buffer each)
 _TEXELS = 64  # texels per parallel iteration (one set of scratch arrays each)
+# Levenberg-Marquardt damping: x 1/3 after a kept step, x 4 after a rejected one, within [1e-6, 1e6]
+_LM_DOWN, _LM_UP, _LM_MIN, _LM_MAX = 1.0 / 3.0, 4.0, 1e-6, 1e6
+# fast-math without "no NaNs": the Cholesky's positive-pivot test must still see a NaN
+_FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
 def set_threads(workers: int) -> None:
@@ -185,6 +189,12 @@ def _schlick_fresnel(r0_dielectric, m, base, c5):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
+def _model(m, base, e_pi, fresnel, spec):  # pragma: no cover - compiled
+    """``B = (1 - m) base E / pi + F G1m Spec`` of one channel (``spec`` is ``G1m Spec``)."""
+    return (1.0 - m) * base * e_pi + fresnel * spec
+
+
+@numba.njit(cache=True, inline="always")
 def _pair_terms(alpha, f, fd, light, n, tan2, masking, work):  # pragma: no cover - compiled
     """Per channel of pair n: ``work[0] = G1m Spec``, ``work[1] = d(G1m Spec)/dalpha``."""
     g1, dg1 = _masking(alpha, tan2[n], masking)
@@ -225,7 +235,7 @@ def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, a
                 _pair_terms(alpha, f, fd, light, n, tan2, masking, work)
                 for c in range(3):
                     fresnel = _schlick_fresnel(r0_dielectric, m, x[s, c], c5)
-                    value = (1.0 - m) * x[s, c] * e_pi[s, c] + fresnel * work[0, c]
+                    value = _model(m, x[s, c], e_pi[s, c], fresnel, work[0, c])
                     if write_model:
                         model[n, c] = value
                     res = value - radiance[n, c]
@@ -375,8 +385,9 @@ def grid_search(
 @numba.njit(cache=True, inline="always")
 def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
                 nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
-    """Objective of texel s at parameters ``xs``: its scaled L1 data term plus the TV terms of its
-    edges, the neighbours held at ``x``."""
+    """Objective of texel s at parameters ``xs`` (5,): its L1 data term times ``data_scale`` plus
+    ``tv_scale`` times the TV of its edges, the neighbours held at ``x`` (S, 5); ``f``, ``fd``
+    (L,) and ``work`` (2, 3) are scratch."""
     cost = 0.0
     if s < start.shape[0] - 1:
         alpha = max(xs[3] * xs[3], alpha_min)
@@ -387,7 +398,7 @@ def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
             c5 = schlick[n]
             for c in range(3):
                 fresnel = _schlick_fresnel(r0_dielectric, m, xs[c], c5)
-                cost += abs((1.0 - m) * xs[c] * e_pi[s, c] + fresnel * work[0, c] - radiance[n, c])
+                cost += abs(_model(m, xs[c], e_pi[s, c], fresnel, work[0, c]) - radiance[n, c])
         cost *= data_scale
     for k in range(nb_start[s], nb_start[s + 1]):
         j = nb[k]
@@ -426,7 +437,7 @@ def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
     return True
 
 
-@numba.njit(parallel=True, cache=True, fastmath=True)
+@numba.njit(parallel=True, cache=True, fastmath=_FAST)
 def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
               nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
               cost_out):  # pragma: no cover - compiled
@@ -467,17 +478,17 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                     for c in range(3):
                         spec = work[0, c]
                         fresnel = _schlick_fresnel(r0_dielectric, m, x[s, c], c5)
-                        res = (1.0 - m) * x[s, c] * e_pi[s, c] + fresnel * spec - radiance[p, c]
+                        res = _model(m, x[s, c], e_pi[s, c], fresnel, spec) - radiance[p, c]
                         cost += abs(res)
                         # Jacobian row of this residual: base_c, roughness, metallic (other bases 0)
                         j_base = (1.0 - m) * e_pi[s, c] + m * (1.0 - c5) * spec
                         j_r = fresnel * work[1, c] * dalpha
                         j_m = -x[s, c] * e_pi[s, c] + (x[s, c] - r0_dielectric) * (1.0 - c5) * spec
-                        sg = data_scale * np.sign(res)
+                        # the reweighted quadratic's own gradient: sign(res) above the floor, Huber below
                         w = data_scale / max(abs(res), floor)
-                        g[c] += sg * j_base
-                        g[3] += sg * j_r
-                        g[4] += sg * j_m
+                        g[c] += w * res * j_base
+                        g[3] += w * res * j_r
+                        g[4] += w * res * j_m
                         h[c, c] += w * j_base * j_base
                         h[c, 3] += w * j_base * j_r
                         h[c, 4] += w * j_base * j_m
@@ -490,8 +501,9 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                 for q in range(5):
                     d = x[s, q] - x[j, q]
                     cost += tv_scale * abs(d)
-                    g[q] += tv_scale * np.sign(d)
-                    h[q, q] += tv_scale / max(abs(d), tv_floor)
+                    w = tv_scale / max(abs(d), tv_floor)
+                    g[q] += w * d
+                    h[q, q] += w
             for q in range(5):
                 for q2 in range(q):
                     h[q, q2] = h[q2, q]
@@ -501,6 +513,7 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
             lam_s = lam[s]
             for _ in range(tries):
                 # bounds: a parameter at a bound that the gradient pushes outwards stays there
+                moving = False
                 for q in range(5):
                     for q2 in range(5):
                         a[q, q2] = h[q, q2]
@@ -513,9 +526,21 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                             a[q2, q] = 0.0
                         a[q, q] = 1.0
                         rhs[q] = 0.0
+                    elif g[q] != 0.0:
+                        moving = True
+                if not moving:  # converged, or held by its bounds: nothing to try, damping kept
+                    break
                 if not _solve_spd5(a, rhs, step):
-                    lam_s *= 10.0
+                    lam_s = min(lam_s * _LM_UP, _LM_MAX)
                     continue
+                # the reweighted quadratic's predicted decrease: none worth a try once converged
+                gain = 0.0
+                for q in range(5):
+                    gain -= g[q] * step[q]
+                    for q2 in range(5):
+                        gain -= 0.5 * step[q] * h[q, q2] * step[q2]
+                if not gain > 1e-12 * cost:
+                    break
                 for q in range(5):
                     trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
                 new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
@@ -523,9 +548,9 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                 if new < cost:
                     for q in range(5):
                         x[s, q] = trial[q]
-                    lam_s = max(lam_s * 0.3, 1e-6)
+                    lam_s = max(lam_s * _LM_DOWN, _LM_MIN)
                     break
-                lam_s = min(lam_s * 10.0, 1e8)
+                lam_s = min(lam_s * _LM_UP, _LM_MAX)
             lam[s] = lam_s
 
 
@@ -539,18 +564,21 @@ def lm_sweep(
 
     Texel s minimises its own part of the objective with its TV neighbours
     held fixed: ``data_scale sum_{n, c} |B - B_obs| + tv_scale sum_{j, q} |x_sq - x_jq|``
-    (model of `l1_loss_gradient`). Both absolute values are majorised by
-    quadratics at the current point (iteratively reweighted least squares:
-    weight ``1 / max(|r|, floor)``, the floor ``irls_floor`` times the
-    texel's mean observed radiance for the data, ``tv_floor`` for TV), whose
+    (model of `l1_loss_gradient`). Both absolute values are replaced by
+    quadratics at the current point (iteratively reweighted least squares,
+    weight ``1 / max(|r|, floor)``: the floor is ``irls_floor`` times the
+    texel's mean observed radiance for the data, ``tv_floor`` for TV), whose damped
     Gauss-Newton system ``(H + lam diag(H)) step = -grad`` is solved with
-    the parameters that sit on a bound and are pushed outwards held there;
-    the step, clipped to ``[lower, upper]``, is taken only if it lowers the
-    texel's true objective, else ``lam`` grows tenfold (up to ``tries``
-    times); an accepted step shrinks it by 0.3. When no two of ``texels``
-    are neighbours (one colour of the atlas's checkerboard) the updates are
-    exact block coordinate descent: the total objective never rises, and
-    the result does not depend on the number of threads.
+    the parameters that sit on a bound and are pushed outwards held there.
+    The step, clipped to ``[lower, upper]``, is kept only if it lowers the
+    texel's true objective; ``lam`` is then divided by 3, else multiplied
+    by 4 and the step solved again (up to ``tries`` times; ``lam`` stays in
+    [1e-6, 1e6]). A texel whose quadratic predicts no decrease (converged,
+    or held by its bounds) is left as it is, its ``lam`` unchanged. When no
+    two of ``texels`` are neighbours (one colour of the atlas's
+    checkerboard) the updates are exact block coordinate descent: the total
+    objective never rises, and the result does not depend on the number of
+    threads.
 
     Parameters
     ----------
@@ -562,10 +590,11 @@ def lm_sweep(
         As for `l1_loss_gradient`; ``start`` covers the first ``len(start) - 1``
         rows of ``x`` (the observed texels), the others have no data term.
     nb_start, nb : numpy.ndarray
-        Shapes ``(S + 1,)`` and ``(E,)``, int64: the TV neighbours of row s
+        Shapes ``(S + 1,)`` and ``(2 M,)``, int64: the TV neighbours of row s
         are ``nb[nb_start[s]:nb_start[s + 1]]``.
     data_scale, tv_scale : float
-        Weights of the data term's sum and of each TV edge.
+        Weights of the data term's sum (``1 / (3 N)``: a mean) and of each
+        TV edge (``tv_weight / M``).
     lower, upper : numpy.ndarray
         Shape ``(5,)``: bounds of each parameter.
     irls_floor, tv_floor : float
