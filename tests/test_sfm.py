@@ -428,13 +428,17 @@ def test_reconstruct_is_repeatable_quiet_and_logs_phases(capture, reconstruction
     log = logging.getLogger("test_sfm")
     with caplog.at_level(logging.INFO, logger="test_sfm"):
         again = sfm.reconstruct(path, tmp_path, ref, sfm.SfmOptions(), log=log)
-    first, second = sfm.registered_poses(rec), sfm.registered_poses(again)
-    assert sorted(first) == sorted(second)
-    for name in first:
-        # Usually bit-identical; COLMAP's thread scheduling has moved pose
-        # entries by up to 6e-3 (sfm module docstring); a wrong registration
-        # moves rotation entries by order 1.
-        np.testing.assert_allclose(first[name][0], second[name][0], rtol=0, atol=0.02)
+    assert sorted(sfm.registered_poses(rec)) == sorted(sfm.registered_poses(again))
+    # Usually bit-identical; COLMAP's thread scheduling has moved an entry of the
+    # unaligned pose by up to 2.4e-2 (sfm module docstring), partly a change of the
+    # reconstruction's gauge. So compare what the pipeline uses, the cameras aligned
+    # to the reference: a wrong registration turns a view by order 1 and moves its
+    # centre by the order of the camera distance.
+    first, second = sfm.aligned_cameras(rec, ref)[0], sfm.aligned_cameras(again, ref)[0]
+    assert first.names == second.names
+    np.testing.assert_allclose(first.world_to_camera[:, :3, :3], second.world_to_camera[:, :3, :3], rtol=0, atol=0.02)
+    distance = np.median(np.linalg.norm(ref.centres, axis=1))
+    assert np.linalg.norm(first.centres - second.centres, axis=1).max() < 0.02 * distance
     out, err = capfd.readouterr()
     assert "feature_extraction" not in out + err and "incremental" not in out + err
     messages = " | ".join(r.getMessage() for r in caplog.records)
