@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from freqbrdf.artefacts import read_observations
+from freqbrdf.artefacts import read_observations, sample_texels
 from freqbrdf.cameras import Cameras, hemisphere_rig, intrinsics
 from freqbrdf.io import read_exr
 from freqbrdf.mitsuba_setup import setup_mitsuba
@@ -43,7 +43,6 @@ from freqbrdf.view_selection import (
     capture_and_candidates,
     greedy_selection,
     rank_views,
-    sample_texels,
     set_threads,
 )
 
@@ -83,7 +82,7 @@ def main() -> None:
         print(rows[-1], flush=True)
 
     for n in args.texels:
-        texels = sample_texels(len(obs.texels), n, seed=0)
+        texels = sample_texels(np.arange(len(obs.texels)), n, seed=0)
         start = time.perf_counter()
         views = capture_and_candidates(obs, texels, cameras, incoming_map, occluded,
                                        config["observations"]["ray_offset"])

@@ -128,3 +128,16 @@ def test_entropy_round_trip(tmp_path):
     outside = np.setdiff1d(np.arange(16), texels.texel)
     np.testing.assert_array_equal(back.atlas.ravel()[outside], 1.0)
     np.testing.assert_array_equal(written.atlas, back.atlas)
+
+
+def test_texel_sample_is_seeded_sorted_and_drawn_from_the_candidates():
+    candidates = np.arange(0, 100, 3)
+    a, b = af.sample_texels(candidates, 10, seed=4), af.sample_texels(candidates, 10, seed=4)
+    np.testing.assert_array_equal(a, b)
+    assert len(a) == 10 and np.isin(a, candidates).all() and np.all(np.diff(a) > 0)
+    assert not np.array_equal(a, af.sample_texels(candidates, 10, seed=5))
+    np.testing.assert_array_equal(af.sample_texels(candidates[::-1], 1000, seed=0), candidates)
+    with pytest.raises(ValueError, match="no texel to sample"):
+        af.sample_texels(np.zeros(0, int), 3, seed=0)
+    with pytest.raises(ValueError, match="texels must be"):
+        af.sample_texels(candidates, 0, seed=0)

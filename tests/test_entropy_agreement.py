@@ -25,18 +25,6 @@ def test_material_grid_holds_every_combination_with_roughness_slowest() -> None:
         ea.material_grid(1)
 
 
-def test_texel_sample_is_seeded_and_observed_only() -> None:
-    observed = np.zeros(100, bool)
-    observed[::3] = True
-    a, b = ea.sample_texels(observed, 10, seed=4), ea.sample_texels(observed, 10, seed=4)
-    np.testing.assert_array_equal(a, b)
-    assert len(a) == 10 and observed[a].all() and np.all(np.diff(a) > 0)
-    assert not np.array_equal(a, ea.sample_texels(observed, 10, seed=5))
-    np.testing.assert_array_equal(ea.sample_texels(observed, 1000, seed=0), np.nonzero(observed)[0])
-    with pytest.raises(ValueError, match="no texel is observed"):
-        ea.sample_texels(np.zeros(5, bool), 3, seed=0)
-
-
 def _observations(radiance, weight, incoming) -> Observations:
     n_tex, n_views = np.shape(weight)
     wo = np.broadcast_to([0.0, 0.0, 1.0], (n_tex, n_views, 3)).copy()

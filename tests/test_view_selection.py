@@ -17,7 +17,6 @@ from freqbrdf.view_selection import (
     farthest_views,
     greedy_selection,
     rank_views,
-    sample_texels,
 )
 from synthetic import random_unit
 
@@ -141,10 +140,7 @@ def test_farthest_views_spread_out():
     assert len(farthest_views(d, 9)) == 5
 
 
-def test_texel_sample_is_seeded_and_model_refuses_what_it_does_not_mirror():
-    a = sample_texels(100, 10, seed=3)
-    assert len(a) == 10 and (np.diff(a) > 0).all() and np.array_equal(a, sample_texels(100, 10, seed=3))
-    np.testing.assert_array_equal(sample_texels(5, 10, seed=0), np.arange(5))
+def test_model_refuses_what_it_does_not_mirror():
     with pytest.raises(ValueError, match="sh.regulariser exp or constant, got 'none'"):
         model(sh={**SH, "regulariser": "none"})
     with pytest.raises(ValueError, match="spectrum.normalise: light, got 'reference'"):

@@ -31,6 +31,7 @@ import numpy as np
 from .brdf import TEXTURES
 from .io import read_exr, read_json, write_exr, write_json
 from .observations import SurfaceTexels
+from .validation import check_int
 from .plots import texture_preview
 from .textures import scatter_to_atlas
 
@@ -62,6 +63,37 @@ def observed_texels(weight: np.ndarray) -> np.ndarray:
     if w.ndim != 2:
         raise ValueError(f"weight must have shape (T, K), got shape {w.shape}")
     return (w > 0).any(axis=1)
+
+
+def sample_texels(candidates: np.ndarray, count: int, seed: int) -> np.ndarray:
+    """A seeded random sample of ``count`` of the texel indices ``candidates`` (all if there are fewer).
+
+    Parameters
+    ----------
+    candidates : numpy.ndarray
+        Shape ``(n,)``, int: texel indices to draw from (e.g. the observed ones).
+    count : int
+        Texels wanted (>= 1).
+    seed : int
+        Seed of the sample.
+
+    Returns
+    -------
+    numpy.ndarray
+        Sorted texel indices, at most ``count``.
+
+    Raises
+    ------
+    ValueError
+        If there is no candidate.
+    """
+    candidates = np.asarray(candidates, dtype=np.int64)
+    count = check_int(count, "texels", 1)
+    if candidates.size == 0:
+        raise ValueError("no texel to sample (none observed?)")
+    if candidates.size <= count:
+        return np.sort(candidates)
+    return np.sort(np.random.default_rng(seed).choice(candidates, count, replace=False))
 
 
 # --------------------------------------------------------------------------

@@ -63,37 +63,6 @@ def material_grid(n: int) -> np.ndarray:
     return np.stack([r.ravel(), m.ravel(), b.ravel()], axis=1)
 
 
-def sample_texels(observed: np.ndarray, count: int, seed: int) -> np.ndarray:
-    """A seeded random sample of the observed texels (all of them if there are fewer).
-
-    Parameters
-    ----------
-    observed : numpy.ndarray
-        Shape ``(T,)``, bool.
-    count : int
-        Texels wanted.
-    seed : int
-        Seed of the sample.
-
-    Returns
-    -------
-    numpy.ndarray
-        Sorted texel indices, at most ``count``.
-
-    Raises
-    ------
-    ValueError
-        If no texel is observed.
-    """
-    candidates = np.nonzero(np.asarray(observed, dtype=bool))[0]
-    count = check_int(count, "texels", 2)
-    if candidates.size == 0:
-        raise ValueError("no texel is observed: nothing to score")
-    if candidates.size <= count:
-        return candidates
-    return np.sort(np.random.default_rng(seed).choice(candidates, count, replace=False))
-
-
 def texel_sample(obs: Observations, index: np.ndarray) -> Observations:
     """The observations of the texels ``index`` only (arrays read into memory)."""
     index = np.asarray(index, dtype=np.int64)

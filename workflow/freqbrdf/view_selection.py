@@ -51,7 +51,7 @@ from .spectrum import combine_entropy, default_grid, model_filters, residual_wid
 from .validation import check_choice, check_int, check_positive, check_shape
 from .views import mirror_light
 
-__all__ = ["CandidateViews", "SelectionModel", "Ranking", "candidate_views", "sample_texels", "expected_entropy",
+__all__ = ["CandidateViews", "SelectionModel", "Ranking", "candidate_views", "expected_entropy",
            "rank_views", "greedy_selection", "farthest_views", "set_threads", "capture_views", "capture_and_candidates",
            "ranking_table"]
 
@@ -150,15 +150,6 @@ def candidate_views(position: np.ndarray, normal: np.ndarray, geometry: Mapping[
     weight[seen_t, seen_k] = geometry["cos_o"][seen_t, seen_k]
     return CandidateViews.unseen(weight, np.asarray(geometry["wo_local"], np.float64),
                                  np.asarray(geometry["incoming"], np.float64), names)
-
-
-def sample_texels(n_tex: int, count: int, seed: int) -> np.ndarray:
-    """A seeded random subset of ``count`` of ``n_tex`` texels (sorted; all if ``count >= n_tex``):
-    the texels a selection averages its expected entropy over."""
-    n_tex, count = check_int(n_tex, "n_tex", 1), check_int(count, "texels", 1)
-    if count >= n_tex:
-        return np.arange(n_tex)
-    return np.sort(np.random.default_rng(seed).choice(n_tex, count, replace=False))
 
 
 @dataclass(frozen=True)
@@ -620,7 +611,7 @@ def capture_views(obs: Observations, texels: np.ndarray, incoming_map: np.ndarra
     obs : Observations
         The capture, T texels x K views.
     texels : numpy.ndarray
-        ``(t,)`` indices of the texels the selection averages over (`sample_texels`).
+        ``(t,)`` indices of the texels the selection averages over (:func:`freqbrdf.artefacts.sample_texels`).
     incoming_map : numpy.ndarray
         ``(H, W, 3)``: the environment band-limited at the a' of the views the selection ends with.
     """

@@ -5,9 +5,9 @@ import dataclasses
 
 import numpy as np
 
-from freqbrdf.artefacts import ShFit, read_observations, read_sh_fit
+from freqbrdf.artefacts import ShFit, read_observations, read_sh_fit, sample_texels
 from freqbrdf.entropy_agreement import (Pairs, angular_radiance, grid_objective, likelihood_entropy, material_grid,
-                                        mitsuba_radiance, sample_texels, texel_sample, timed,
+                                        mitsuba_radiance, texel_sample, timed,
                                         uniform_material_scene)
 from freqbrdf.figures import entropy_agreement_figure
 from freqbrdf.io import atomic_path, read_exr, write_json
@@ -24,7 +24,7 @@ def main(smk, log):
     mi = setup_mitsuba(smk.params.variant, smk.threads)
     obs, fit = read_observations(smk.input.observations), read_sh_fit(smk.input.sh)
     envmap = read_exr(smk.input.envmap)
-    index = sample_texels(obs.observed, settings["texels"], p.seed)
+    index = sample_texels(np.nonzero(obs.observed)[0], settings["texels"], p.seed)
     sample = texel_sample(obs, index)
     pairs = Pairs.of(sample)
     grid = material_grid(settings["grid"])

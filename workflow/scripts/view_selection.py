@@ -5,7 +5,7 @@ import time
 
 import numpy as np
 
-from freqbrdf.artefacts import read_observations
+from freqbrdf.artefacts import read_observations, sample_texels
 from freqbrdf.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics
 from freqbrdf.io import atomic_path, read_exr, read_json, write_json
 from freqbrdf.logs import run_script
@@ -18,7 +18,6 @@ from freqbrdf.view_selection import (
     capture_and_candidates,
     greedy_selection,
     ranking_table,
-    sample_texels,
 )
 
 
@@ -43,7 +42,7 @@ def main(smk, log):
     n_capture = len(obs.meta["views"])
     select = min(p.settings["select"], len(cameras))
     a_prime = band_limit_parameter(n_capture + select, p.band_limit)
-    texels = sample_texels(len(obs.texels), p.settings["texels"], p.seed)
+    texels = sample_texels(np.arange(len(obs.texels)), p.settings["texels"], p.seed)
     start = time.perf_counter()
     occluded = functools.partial(occlusion_test, mi, mesh_scene(mi, smk.input.mesh))
     views = capture_and_candidates(obs, texels, cameras, band_limited_envmap(read_exr(smk.input.envmap), a_prime),

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf
+from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf, sample_texels
 from freqbrdf.brdf import TEXTURES
 from freqbrdf.cameras import cameras_from_json
 from freqbrdf.io import atomic_path, read_exr, read_json
@@ -20,7 +20,6 @@ from freqbrdf.view_selection import (
     capture_views,
     farthest_views,
     greedy_selection,
-    sample_texels,
     set_threads,
 )
 from freqbrdf.views import estimate_subset, view_subsets
@@ -57,7 +56,7 @@ def main(smk, log):
     p = smk.params
     settings = OptimiseSettings.from_config(p.optimise, workers=smk.threads)
     light, e = estimate_light(envmap, obs, "freq", p.optimise["lmax"])
-    texels = sample_texels(len(obs.texels), p.settings["texels"], p.texel_seed)
+    texels = sample_texels(np.arange(len(obs.texels)), p.settings["texels"], p.texel_seed)
     seen = obs.observed
     centre = obs.texels.position[seen].mean(axis=0)
     directions = cameras.centres - centre
