@@ -7,7 +7,6 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy.stats import ConstantInputWarning, pearsonr
 
 from .brdf import R0_DIELECTRIC, TEXTURES, alpha_from_roughness, smith_g1, tan2_theta
 from .colour import to_srgb
@@ -599,6 +598,9 @@ def time_to_reach(elapsed_s: np.ndarray, mse: np.ndarray, target: float) -> floa
 
 def pearson(a: np.ndarray, b: np.ndarray) -> float:
     """Pearson's r of two equally long samples (`scipy.stats.pearsonr`); NaN if either is constant."""
+    # imported here: scipy.stats takes 0.9 s to import, and most users of this module never correlate
+    from scipy.stats import ConstantInputWarning, pearsonr
+
     a, b = np.asarray(a, dtype=np.float64).ravel(), np.asarray(b, dtype=np.float64).ravel()
     if a.shape != b.shape:
         raise ValueError(f"samples differ in length: {a.size} and {b.size}")
