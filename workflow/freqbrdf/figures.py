@@ -16,7 +16,7 @@ import numpy as np
 
 from .colour import to_srgb, tonemap
 from .metrics import hdr_pair, parameter_error_map, psnr_h
-from .plots import pyplot, save_figure
+from .plots import atlas_image, pyplot, save_figure
 from .tables import method_label  # the registry's display names, as the tables print them
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -445,10 +445,8 @@ def stress_figure(path: str | os.PathLike, rows: list[Mapping[str, object]], met
             if values is None:
                 ax.set_frame_on(False)
                 continue
-            image = np.full(row["resolution"] ** 2, np.nan)
-            image[row["texels"]] = values
-            shown = ax.imshow(image.reshape(row["resolution"], row["resolution"]), cmap=cmap, vmin=0.0, vmax=top,
-                              interpolation="nearest")
+            shown = ax.imshow(atlas_image(row["resolution"], row["texels"], values), cmap=cmap, vmin=0.0,
+                              vmax=top, interpolation="nearest")
             if r == 0 or title == titles[2]:
                 ax.set_title(title, fontsize=9)
             fig.colorbar(shown, ax=ax, fraction=0.046)

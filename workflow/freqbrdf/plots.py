@@ -109,6 +109,23 @@ def texture_preview(path: str | os.PathLike, texture: np.ndarray, srgb: bool) ->
     write_png(path, to_srgb(texture) if srgb else np.clip(texture, 0.0, 1.0))
 
 
+def atlas_image(resolution: int, texel: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Per-texel values on the UV atlas, shape ``(R, R)``, NaN (drawn grey) at every other texel.
+
+    Parameters
+    ----------
+    resolution : int
+        Atlas size R.
+    texel : ndarray, shape (T,)
+        Flat texel indices ``i * R + j``.
+    values : ndarray, shape (T,)
+        One value per texel.
+    """
+    image = np.full(resolution * resolution, np.nan)
+    image[texel] = values
+    return image.reshape(resolution, resolution)
+
+
 def coverage_figure(path: str | os.PathLike, resolution: int, texel: np.ndarray, views_per_texel: np.ndarray, title: str) -> None:
     """How many views observe each texel, drawn in UV space.
 
@@ -124,11 +141,9 @@ def coverage_figure(path: str | os.PathLike, resolution: int, texel: np.ndarray,
         Figure title.
     """
     plt = pyplot()
-    image = np.full(resolution * resolution, np.nan)
-    image[texel] = views_per_texel
     fig, ax = plt.subplots(figsize=(5.2, 4.4))
     cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
-    shown = ax.imshow(image.reshape(resolution, resolution), cmap=cmap, vmin=0, interpolation="nearest",
+    shown = ax.imshow(atlas_image(resolution, texel, views_per_texel), cmap=cmap, vmin=0, interpolation="nearest",
                       extent=(0, 1, 1, 0))
     ax.set_xlabel("u")
     ax.set_ylabel("v")
