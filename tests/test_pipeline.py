@@ -416,11 +416,16 @@ def test_report_builds_and_a_headless_browser_shows_tables_and_figures(repo, run
     assert _colour_count(images["tables"], (238, 238, 255)) > 20000
     assert _colour_count(images["claims"], (238, 238, 255)) > 2000
     assert _colour_count(images["claims"], (216, 245, 208)) + _colour_count(images["claims"], (248, 208, 208)) > 500
-    # The figures show: many colours right of the navigation pane (colour maps, renders;
-    # the landing page's rule graph has under a thousand).
+    # The figures show: many colours right of the navigation pane (its first fifth; colour maps,
+    # renders). Measured: maps 5,700, relight 81,000, while the pages without a figure (the
+    # landing page's rule graph, the tables) have 470-1,100. The right half alone, with a bound
+    # of 5,000, passed for the maps before and then held 1,400 in one CI run.
     for name in ("maps", "relight"):
-        right = images[name][:, images[name].shape[1] // 2:, :3].reshape(-1, 3)
-        assert len(np.unique(right, axis=0)) > 5000, f"{name}.png shows no figure"
+        right = images[name][:, images[name].shape[1] // 4:, :3].reshape(-1, 3)
+        assert len(np.unique(right, axis=0)) > 2500, f"{name}.png shows no figure"
+    for name in ("workflow", "tables", "claims"):  # the criterion tells a figure from none
+        right = images[name][:, images[name].shape[1] // 4:, :3].reshape(-1, 3)
+        assert len(np.unique(right, axis=0)) < 2500, f"{name}.png has a figure's colours"
     # The landing page opens on the run's summary: what was run (the tiny config, methods by
     # display name), the claims with their verdicts (coloured cells) and the headline numbers.
     summary = (shots / "workflow.txt").read_text()
