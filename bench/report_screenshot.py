@@ -40,9 +40,12 @@ CHROMIUM_NAMES = ("chromium", "chromium-browser", "chromium-headless-shell", "go
 # the opened figure's image decoded, or the table's frame loaded; the landing
 # page's rule graph is drawn by Vega into an SVG.
 SHOWN_JS = {
-    "img": "(() => { const im = [...document.images].filter((i) => i.src.startsWith('data:image'));"
-           " return im.length > 0 && im.every((i) => i.complete && i.naturalWidth > 0); })()",
-    "html": "(() => { const f = document.querySelector('iframe'); return f !== null && f.dataset.loaded === '1'; })()",
+    # the opened result's own image: the landing page may hold data: images of its own, which
+    # once let a screenshot of it pass for the figure's
+    "img": "(() => { const uri = window.reportScreenshotOpened; return uri !== undefined &&"
+           " [...document.images].some((i) => i.src === uri && i.complete && i.naturalWidth > 0); })()",
+    "html": "(() => { const f = document.querySelector('iframe'); return window.reportScreenshotOpened !== undefined"
+            " && f !== null && f.dataset.loaded === '1'; })()",
     None: "document.readyState === 'complete' && document.querySelector('svg') !== null",
 }
 # A frame of a data: address has an opaque origin: its load event is the only sign it is shown.
@@ -83,6 +86,7 @@ window.addEventListener("load", function () {
       navbarMode: "resultinfo", category: category, subcategory: subcategory, resultPath: path,
       content: mime === "text/html" ? "html" : "img", contentPath: results[path].data_uri
     });
+    window.reportScreenshotOpened = results[path].data_uri;
   }, 300);
 });
 </script>
