@@ -34,6 +34,15 @@ def check_config(config: dict[str, Any], schema: str | Path) -> None:
     ConfigError
         One line: ``config key <dotted.path>: <what is wrong>``.
     """
+    _check_schema(config, schema)
+    _check_env_names(config)
+    _check_colmap(config["poses"]["colmap"])
+    _check_extra_captures(config)
+    _check_framing(config["render"])
+
+
+def _check_schema(config: dict[str, Any], schema: str | Path) -> None:
+    """Snakemake's schema validation (fills defaults), its report cut to the best-matching error."""
     import jsonschema
     import yaml
     from snakemake.utils import validate
@@ -49,6 +58,9 @@ def check_config(config: dict[str, Any], schema: str | Path) -> None:
             raise
         raise ConfigError(f"config key {_key_path(error.absolute_path)}: {error.message}") from None
 
+
+def _check_env_names(config: dict[str, Any]) -> None:
+    """Environments and methods named anywhere are defined (under ``envs``, in the method registry)."""
     unknown = [e for e in config["capture_envs"] if e not in config["envs"]]
     if unknown:
         raise ConfigError(
@@ -65,11 +77,12 @@ def check_config(config: dict[str, Any], schema: str | Path) -> None:
     unknown = [m for m in config["methods"] if m not in METHODS]
     if unknown:
         raise ConfigError(f"config key methods: {unknown} are not registered methods (freqbrdf.methods: {list(METHODS)})")
-    from .meshes import OBJECTS as CATALOGUE
 
+
+def _check_colmap(colmap: dict[str, Any]) -> None:
+    """``poses.colmap`` maps onto `SfmOptions` and leaves the pipeline's own keys alone."""
     from .sfm import CONFIG_PREFIX, SfmOptions
 
-    colmap = config["poses"]["colmap"]
     for key in ("seed", "num_threads"):  # set by the pipeline (config seed, rule threads)
         if key in colmap:
             raise ConfigError(f"config key {CONFIG_PREFIX}{key}: set by the pipeline, not in config")
@@ -77,6 +90,11 @@ def check_config(config: dict[str, Any], schema: str | Path) -> None:
         SfmOptions.from_config(colmap)
     except ValueError as error:
         raise ConfigError(f"config key {error}") from None
+
+
+def _check_extra_captures(config: dict[str, Any]) -> None:
+    """Real and stress captures have names of their own and consistent settings."""
+    from .meshes import OBJECTS as CATALOGUE
 
     for name, capture in config["real_captures"].items():
         if name in CATALOGUE:
@@ -95,7 +113,10 @@ def check_config(config: dict[str, Any], schema: str | Path) -> None:
         if capture.get("clearcoat", 0.0) > 0.0 and capture.get("model", "principled") != "principled":
             raise ConfigError(f"config key stress_captures.{name}.clearcoat: needs model principled, "
                               f"not {capture['model']!r}")
-    render = config["render"]
+
+
+def _check_framing(render: dict[str, Any]) -> None:
+    """The camera's field of view frames the unit-radius object from its distance."""
     half_span = math.degrees(math.asin(1.0 / render["camera_distance"]))
     if half_span >= render["fov_deg"] / 2.0:
         raise ConfigError(

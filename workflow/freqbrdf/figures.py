@@ -9,7 +9,7 @@ report rules use these figures, so editing them reruns nothing upstream.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -101,9 +101,6 @@ def capture_maps_figure(
         truth), the numbers printed in the row labels.
     """
     plt = pyplot()
-    from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import ListedColormap, Normalize
-
     errors = {m: parameter_error_map(truth, est) for m, est in estimates.items()} if truth is not None else {}
     vmax = error_scale(errors, seen)
     rows = [("ground truth", truth)] + list(estimates.items())
@@ -129,22 +126,10 @@ def capture_maps_figure(
         else:
             ax_extra.text(0.5, 0.5, "no ground truth", ha="center", va="center", fontsize=8)
         ax_base.set_ylabel(label, fontsize=9)
-    for ax in axes.ravel():
-        ax.set_xticks([])
-        ax.set_yticks([])
-    for ax, name in zip(axes[0], ("base colour", "roughness", "metallic", "entropy (ours)")):
-        ax.set_title(name, fontsize=9)
+    _title_columns(axes, ("base colour", "roughness", "metallic", "entropy (ours)"))
     if len(rows) > 1 and errors:
         axes[1, 3].set_title("squared error", fontsize=9)
-    # One value scale per parameter column, below it: base colour per channel (linear value,
-    # drawn sRGB-encoded as the maps are), roughness and metallic as drawn.
-    unit = Normalize(0.0, 1.0)
-    base_scale = ListedColormap(np.repeat(to_srgb(np.linspace(0.0, 1.0, 256))[:, None], 3, axis=1))
-    for c, (cmap, label) in enumerate(((base_scale, "base colour, each channel (linear)"),
-                                       (grey_map, "roughness"), (grey_map, "metallic"))):
-        # the space a bar takes is a fraction of its column's height: about one sixth of a row
-        fig.colorbar(ScalarMappable(unit, cmap), ax=axes[:, c].tolist(), location="bottom", shrink=0.9,
-                     aspect=15, fraction=0.15 / len(rows), label=label)
+    _parameter_scales(fig, axes, grey_map)
     if shown_entropy is not None:
         fig.colorbar(shown_entropy, ax=axes[0, 3], shrink=0.9, label="entropy")
     if shown_error is not None:
@@ -152,6 +137,30 @@ def capture_maps_figure(
     fig.suptitle(title, fontsize=10)
     save_figure(fig, path, dpi=100)
     return mse
+
+
+def _title_columns(axes: np.ndarray, titles: Sequence[str]) -> None:
+    """Titles over the first row of a grid of image axes (R, C), and no ticks anywhere."""
+    for ax in axes.ravel():
+        ax.set_xticks([])
+        ax.set_yticks([])
+    for ax, name in zip(axes[0], titles):
+        ax.set_title(name, fontsize=9)
+
+
+def _parameter_scales(fig, axes: np.ndarray, grey_map) -> None:
+    """One value scale below each parameter column (0-2) of a maps grid: base colour per channel
+    (linear value, drawn sRGB-encoded as the maps are), roughness and metallic as drawn."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import ListedColormap, Normalize
+
+    unit = Normalize(0.0, 1.0)
+    base_scale = ListedColormap(np.repeat(to_srgb(np.linspace(0.0, 1.0, 256))[:, None], 3, axis=1))
+    for c, (cmap, label) in enumerate(((base_scale, "base colour, each channel (linear)"),
+                                       (grey_map, "roughness"), (grey_map, "metallic"))):
+        # the space a bar takes is a fraction of its column's height: about one sixth of a row
+        fig.colorbar(ScalarMappable(unit, cmap), ax=axes[:, c].tolist(), location="bottom", shrink=0.9,
+                     aspect=15, fraction=0.15 / axes.shape[0], label=label)
 
 
 def _draw_svbrdf(axes, svbrdf: Mapping[str, np.ndarray] | None, inside: np.ndarray, grey_map) -> None:
@@ -219,42 +228,48 @@ def relight_figure(
     magma = plt.get_cmap("magma").with_extremes(bad=GREY)
     scores = {}
     for r, env in enumerate(envs):
-        reference, mask = references[env]
-        ax_images, ax_errors = axes[2 * r], axes[2 * r + 1]
-        ax_images[0].imshow(tonemap(reference))
-        ax_images[0].set_ylabel(f"relit under\n{env}", fontsize=9)
-        ax_errors[0].set_axis_off()
-        ax_errors[0].text(0.5, 0.5, "below each render:\nthe squared error\nof the images\nPSNR-H compares",
-                          ha="center", va="center", fontsize=8)
-        errors = {}
-        for c, method in enumerate(methods, start=1):
-            image = relit.get(env, {}).get(method)
-            if image is None:  # e.g. a merge, which has seen every capture environment
-                for ax in (ax_images[c], ax_errors[c]):
-                    ax.text(0.5, 0.5, f"not relit\nunder {env}", ha="center", va="center", fontsize=8)
-                continue
-            ax_images[c].imshow(tonemap(image))
-            p, q = hdr_pair(image, reference, mask, clip=clip, normalise=normalise)
-            errors[method] = ((p - q) ** 2).mean(axis=2)
-            scores[env, method] = psnr_h(image, reference, mask, clip=clip, normalise=normalise)
-            ax_images[c].text(0.03, 0.97, f"PSNR-H {scores[env, method]:.2f}", transform=ax_images[c].transAxes,
-                              ha="left", va="top", fontsize=7, color="white",
-                              bbox={"facecolor": "black", "alpha": 0.6, "pad": 1.5, "linewidth": 0})
-        vmax = error_scale(errors, mask)
-        shown = None
-        for c, method in enumerate(methods, start=1):
-            if method in errors:
-                shown = ax_errors[c].imshow(np.where(mask, errors[method], np.nan), cmap=magma, vmin=0.0, vmax=vmax,
-                                            interpolation="nearest")
-        if shown is not None:
-            fig.colorbar(shown, ax=ax_errors[1:].tolist(), shrink=0.8, label="squared error")
-    for ax in axes.ravel():
-        ax.set_xticks([])
-        ax.set_yticks([])
-    for ax, name in zip(axes[0], ("ground truth", *(method_label(m) for m in methods))):
-        ax.set_title(name, fontsize=9)
+        per_env = _relight_rows(fig, axes[2 * r], axes[2 * r + 1], env, *references[env], relit.get(env, {}),
+                                methods, magma, clip=clip, normalise=normalise)
+        scores.update({(env, m): v for m, v in per_env.items()})
+    _title_columns(axes, ("ground truth", *(method_label(m) for m in methods)))
     fig.suptitle(title, fontsize=10)
     save_figure(fig, path, dpi=100)
+    return scores
+
+
+def _relight_rows(fig, ax_images: np.ndarray, ax_errors: np.ndarray, env: str, reference: np.ndarray,
+                  mask: np.ndarray, relit: Mapping[str, np.ndarray], methods: Sequence[str], magma, *,
+                  clip: float, normalise: bool) -> dict[str, float]:
+    """One environment's two rows of `relight_figure`: the ground truth and each method's render
+    (``relit``: method -> (H, W, 3)), under them the squared errors; returns method -> PSNR-H."""
+    scores = {}
+    ax_images[0].imshow(tonemap(reference))
+    ax_images[0].set_ylabel(f"relit under\n{env}", fontsize=9)
+    ax_errors[0].set_axis_off()
+    ax_errors[0].text(0.5, 0.5, "below each render:\nthe squared error\nof the images\nPSNR-H compares",
+                      ha="center", va="center", fontsize=8)
+    errors = {}
+    for c, method in enumerate(methods, start=1):
+        image = relit.get(method)
+        if image is None:  # e.g. a merge, which has seen every capture environment
+            for ax in (ax_images[c], ax_errors[c]):
+                ax.text(0.5, 0.5, f"not relit\nunder {env}", ha="center", va="center", fontsize=8)
+            continue
+        ax_images[c].imshow(tonemap(image))
+        p, q = hdr_pair(image, reference, mask, clip=clip, normalise=normalise)
+        errors[method] = ((p - q) ** 2).mean(axis=2)
+        scores[method] = psnr_h(image, reference, mask, clip=clip, normalise=normalise)
+        ax_images[c].text(0.03, 0.97, f"PSNR-H {scores[method]:.2f}", transform=ax_images[c].transAxes,
+                          ha="left", va="top", fontsize=7, color="white",
+                          bbox={"facecolor": "black", "alpha": 0.6, "pad": 1.5, "linewidth": 0})
+    vmax = error_scale(errors, mask)
+    shown = None
+    for c, method in enumerate(methods, start=1):
+        if method in errors:
+            shown = ax_errors[c].imshow(np.where(mask, errors[method], np.nan), cmap=magma, vmin=0.0, vmax=vmax,
+                                        interpolation="nearest")
+    if shown is not None:
+        fig.colorbar(shown, ax=ax_errors[1:].tolist(), shrink=0.8, label="squared error")
     return scores
 
 

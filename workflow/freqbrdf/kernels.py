@@ -437,12 +437,102 @@ def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
     return True
 
 
+@numba.njit(cache=True, inline="always")
+def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, nb_start, nb,
+                 data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h, g):  # pragma: no cover - compiled
+    """Texel s's objective at ``x[s]``, and in ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton
+    matrix and gradient of its reweighted quadratic (see `lm_sweep`); the rest is scratch."""
+    h[:] = 0.0
+    g[:] = 0.0
+    cost = 0.0
+    if s < start.shape[0] - 1:
+        lo, hi = start[s], start[s + 1]
+        # IRLS floor relative to the texel's own radiance, so that it means the same in any units
+        level = 0.0
+        for p in range(lo, hi):
+            level += abs(radiance[p, 0]) + abs(radiance[p, 1]) + abs(radiance[p, 2])
+        floor = max(irls_floor * level / (3.0 * (hi - lo)), 1e-12)
+        r = x[s, 3]
+        m = x[s, 4]
+        alpha = max(r * r, alpha_min)
+        dalpha = 2.0 * max(r, np.sqrt(alpha_min))
+        _lobe(alpha, f, fd)
+        for p in range(lo, hi):
+            _pair_terms(alpha, f, fd, light, p, tan2, masking, work)
+            c5 = schlick[p]
+            for c in range(3):
+                spec = work[0, c]
+                fresnel = _schlick_fresnel(r0_dielectric, m, x[s, c], c5)
+                res = _model(m, x[s, c], e_pi[s, c], fresnel, spec) - radiance[p, c]
+                cost += abs(res)
+                # Jacobian row of this residual: base_c, roughness, metallic (other bases 0)
+                j_base = (1.0 - m) * e_pi[s, c] + m * (1.0 - c5) * spec
+                j_r = fresnel * work[1, c] * dalpha
+                j_m = -x[s, c] * e_pi[s, c] + (x[s, c] - r0_dielectric) * (1.0 - c5) * spec
+                # the reweighted quadratic's own gradient: sign(res) above the floor, Huber below
+                w = data_scale / max(abs(res), floor)
+                g[c] += w * res * j_base
+                g[3] += w * res * j_r
+                g[4] += w * res * j_m
+                h[c, c] += w * j_base * j_base
+                h[c, 3] += w * j_base * j_r
+                h[c, 4] += w * j_base * j_m
+                h[3, 3] += w * j_r * j_r
+                h[3, 4] += w * j_r * j_m
+                h[4, 4] += w * j_m * j_m
+        cost *= data_scale
+    for k in range(nb_start[s], nb_start[s + 1]):
+        j = nb[k]
+        for q in range(5):
+            d = x[s, q] - x[j, q]
+            cost += tv_scale * abs(d)
+            w = tv_scale / max(abs(d), tv_floor)
+            g[q] += w * d
+            h[q, q] += w
+    for q in range(5):
+        for q2 in range(q):
+            h[q, q2] = h[q2, q]
+    return cost
+
+
+@numba.njit(cache=True, inline="always")
+def _bounded_system(xs, h, g, lam_s, lower, upper, a, rhs):  # pragma: no cover - compiled
+    """Fill ``a`` and ``rhs`` with the damped system ``(h + lam_s diag(h)) step = -g`` in which a
+    parameter at a bound that the gradient pushes outwards is held there; False if none may move."""
+    moving = False
+    for q in range(5):
+        for q2 in range(5):
+            a[q, q2] = h[q, q2]
+        a[q, q] += lam_s * h[q, q] + 1e-12
+        rhs[q] = -g[q]
+    for q in range(5):
+        if (xs[q] <= lower[q] and g[q] > 0.0) or (xs[q] >= upper[q] and g[q] < 0.0):
+            for q2 in range(5):
+                a[q, q2] = 0.0
+                a[q2, q] = 0.0
+            a[q, q] = 1.0
+            rhs[q] = 0.0
+        elif g[q] != 0.0:
+            moving = True
+    return moving
+
+
+@numba.njit(cache=True, inline="always")
+def _predicted_gain(h, g, step):  # pragma: no cover - compiled
+    """Decrease of the quadratic ``g.step + step.h.step / 2`` predicts for ``step``."""
+    gain = 0.0
+    for q in range(5):
+        gain -= g[q] * step[q]
+        for q2 in range(5):
+            gain -= 0.5 * step[q] * h[q, q2] * step[q2]
+    return gain
+
+
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
 def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
               nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
               cost_out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
-    n_obs = start.shape[0] - 1
     n = texels.shape[0]
     for blk in numba.prange((n + _TEXELS - 1) // _TEXELS):
         f = np.empty(n_deg)
@@ -454,100 +544,27 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
         rhs = np.empty(5)
         step = np.empty(5)
         trial = np.empty(5)
-        diag = np.empty(5)
         for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
             s = texels[i]
-            h[:] = 0.0
-            g[:] = 0.0
-            cost = 0.0
-            if s < n_obs:
-                lo, hi = start[s], start[s + 1]
-                # IRLS floor relative to the texel's own radiance, so that it means the same in any units
-                level = 0.0
-                for p in range(lo, hi):
-                    level += abs(radiance[p, 0]) + abs(radiance[p, 1]) + abs(radiance[p, 2])
-                floor = max(irls_floor * level / (3.0 * (hi - lo)), 1e-12)
-                r = x[s, 3]
-                m = x[s, 4]
-                alpha = max(r * r, alpha_min)
-                dalpha = 2.0 * max(r, np.sqrt(alpha_min))
-                _lobe(alpha, f, fd)
-                for p in range(lo, hi):
-                    _pair_terms(alpha, f, fd, light, p, tan2, masking, work)
-                    c5 = schlick[p]
-                    for c in range(3):
-                        spec = work[0, c]
-                        fresnel = _schlick_fresnel(r0_dielectric, m, x[s, c], c5)
-                        res = _model(m, x[s, c], e_pi[s, c], fresnel, spec) - radiance[p, c]
-                        cost += abs(res)
-                        # Jacobian row of this residual: base_c, roughness, metallic (other bases 0)
-                        j_base = (1.0 - m) * e_pi[s, c] + m * (1.0 - c5) * spec
-                        j_r = fresnel * work[1, c] * dalpha
-                        j_m = -x[s, c] * e_pi[s, c] + (x[s, c] - r0_dielectric) * (1.0 - c5) * spec
-                        # the reweighted quadratic's own gradient: sign(res) above the floor, Huber below
-                        w = data_scale / max(abs(res), floor)
-                        g[c] += w * res * j_base
-                        g[3] += w * res * j_r
-                        g[4] += w * res * j_m
-                        h[c, c] += w * j_base * j_base
-                        h[c, 3] += w * j_base * j_r
-                        h[c, 4] += w * j_base * j_m
-                        h[3, 3] += w * j_r * j_r
-                        h[3, 4] += w * j_r * j_m
-                        h[4, 4] += w * j_m * j_m
-                cost *= data_scale
-            for k in range(nb_start[s], nb_start[s + 1]):
-                j = nb[k]
-                for q in range(5):
-                    d = x[s, q] - x[j, q]
-                    cost += tv_scale * abs(d)
-                    w = tv_scale / max(abs(d), tv_floor)
-                    g[q] += w * d
-                    h[q, q] += w
-            for q in range(5):
-                for q2 in range(q):
-                    h[q, q2] = h[q2, q]
+            cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
+                                r0_dielectric, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor,
+                                f, fd, work, h, g)
             cost_out[i] = cost
-            for q in range(5):
-                diag[q] = h[q, q]
             lam_s = lam[s]
             for _ in range(tries):
-                # bounds: a parameter at a bound that the gradient pushes outwards stays there
-                moving = False
-                for q in range(5):
-                    for q2 in range(5):
-                        a[q, q2] = h[q, q2]
-                    a[q, q] += lam_s * diag[q] + 1e-12
-                    rhs[q] = -g[q]
-                for q in range(5):
-                    if (x[s, q] <= lower[q] and g[q] > 0.0) or (x[s, q] >= upper[q] and g[q] < 0.0):
-                        for q2 in range(5):
-                            a[q, q2] = 0.0
-                            a[q2, q] = 0.0
-                        a[q, q] = 1.0
-                        rhs[q] = 0.0
-                    elif g[q] != 0.0:
-                        moving = True
-                if not moving:  # converged, or held by its bounds: nothing to try, damping kept
-                    break
+                if not _bounded_system(x[s], h, g, lam_s, lower, upper, a, rhs):
+                    break  # converged, or held by its bounds: nothing to try, damping kept
                 if not _solve_spd5(a, rhs, step):
                     lam_s = min(lam_s * _LM_UP, _LM_MAX)
                     continue
-                # the reweighted quadratic's predicted decrease: none worth a try once converged
-                gain = 0.0
-                for q in range(5):
-                    gain -= g[q] * step[q]
-                    for q2 in range(5):
-                        gain -= 0.5 * step[q] * h[q, q2] * step[q2]
-                if not gain > 1e-12 * cost:
-                    break
+                if not _predicted_gain(h, g, step) > 1e-12 * cost:
+                    break  # none worth a try once converged
                 for q in range(5):
                     trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
                 new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
                                   r0_dielectric, nb_start, nb, x, data_scale, tv_scale, f, fd, work)
                 if new < cost:
-                    for q in range(5):
-                        x[s, q] = trial[q]
+                    x[s, :] = trial
                     lam_s = max(lam_s * _LM_DOWN, _LM_MIN)
                     break
                 lam_s = min(lam_s * _LM_UP, _LM_MAX)

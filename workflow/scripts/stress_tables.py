@@ -39,6 +39,34 @@ def pair_psnr(first, second):
     return image_psnr(list(a), list(b), list((cover_a >= 0.99) & (cover_b >= 0.99)))
 
 
+def occluder_regions(smk, arrays, index, log):
+    """Per occluded capture (and its control), the region table of texels inside and outside the
+    occluder's shadow; returns the tables and, per object, each observed texel's blocked light fraction."""
+    p = smk.params
+    regions, blocked_by = [], {}
+    for (obj, env, occluder), envmap in zip(p.occluded, smk.input.envmaps):
+        obs, texels, entropy, error = arrays[index[obj]]
+        positions, normals = obs.texels.position[obs.observed], obs.texels.normal[obs.observed]
+        blocked = blocked_light(positions, normals, read_exr(envmap), occluder["height"], occluder["radius"])
+        blocked_by[obj] = blocked
+        shadowed = blocked >= p.shadow_fraction
+        log.info("%s: %d of %d observed texels lose >= %.0f%% of their light to the occluder", obj,
+                 int(shadowed.sum()), len(blocked), 100 * p.shadow_fraction)
+        scored = [(f"{obj} / {env}", entropy, error, shadowed)]
+        ref = p.references.get(obj)
+        if ref is not None and ref[0] in index:
+            # The control (same object, light and views, no occluder) on the same atlas texels: what
+            # the region's error is without the occluder (lower texels are seen from fewer views).
+            _, ref_texels, ref_entropy, ref_error = arrays[index[ref[0]]]
+            ref_shadowed = np.isin(ref_texels, texels[shadowed])
+            scored.append((f"{ref[0]} / {ref[1]} (no occluder)", ref_entropy, ref_error, ref_shadowed))
+        for name, ent, err, mask in scored:
+            table = region_table(err, ent, mask)
+            table.insert(0, "capture", name)
+            regions.append(table.rename_axis("region").reset_index())
+    return regions, blocked_by
+
+
 def main(smk, log):
     p = smk.params
     metrics = check_tidy(pd.read_csv(smk.input.metrics, keep_default_na=False, na_values=[""]))
@@ -65,28 +93,8 @@ def main(smk, log):
     shown = next((m for m in frequency if METHODS[m].rule == "optimise_svbrdf"), (frequency or p.methods)[0])
     index = {o: i for i, (o, _) in enumerate(p.captures)}
     arrays = [capture_arrays(smk, i) for i in range(len(p.captures))]
-    regions, figure_rows = [], []
-    blocked_by = {}
-    for (obj, env, occluder), envmap in zip(p.occluded, smk.input.envmaps):
-        obs, texels, entropy, error = arrays[index[obj]]
-        positions, normals = obs.texels.position[obs.observed], obs.texels.normal[obs.observed]
-        blocked = blocked_light(positions, normals, read_exr(envmap), occluder["height"], occluder["radius"])
-        blocked_by[obj] = blocked
-        shadowed = blocked >= p.shadow_fraction
-        log.info("%s: %d of %d observed texels lose >= %.0f%% of their light to the occluder", obj,
-                 int(shadowed.sum()), len(blocked), 100 * p.shadow_fraction)
-        scored = [(f"{obj} / {env}", entropy, error, shadowed)]
-        ref = p.references.get(obj)
-        if ref is not None and ref[0] in index:
-            # The control (same object, light and views, no occluder) on the same atlas texels: what
-            # the region's error is without the occluder (lower texels are seen from fewer views).
-            _, ref_texels, ref_entropy, ref_error = arrays[index[ref[0]]]
-            ref_shadowed = np.isin(ref_texels, texels[shadowed])
-            scored.append((f"{ref[0]} / {ref[1]} (no occluder)", ref_entropy, ref_error, ref_shadowed))
-        for name, ent, err, mask in scored:
-            table = region_table(err, ent, mask)
-            table.insert(0, "capture", name)
-            regions.append(table.rename_axis("region").reset_index())
+    regions, blocked_by = occluder_regions(smk, arrays, index, log)
+    figure_rows = []
     for (obj, env), (obs, texels, entropy, error) in zip(p.captures, arrays):
         figure_rows.append({"name": f"{obj} / {env}", "resolution": obs.texels.resolution, "texels": texels,
                             "entropy": entropy, "error": error[shown], "blocked": blocked_by.get(obj)})

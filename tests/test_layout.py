@@ -1,0 +1,55 @@
+"""The code-layout rules of the README's "Repository layout": short functions, no private names
+imported across modules, and scripts that take every path from Snakemake rather than building one."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SOURCES = sorted((REPO / "workflow").rglob("*.py"))
+SCRIPTS = sorted((REPO / "workflow" / "scripts").glob("*.py"))
+MAX_FUNCTION_LINES = 80
+
+
+def long_functions(source: str) -> list[tuple[str, int]]:
+    """(name, lines) of every function or method in ``source`` longer than the limit, docstring included."""
+    return [(node.name, node.end_lineno - node.lineno + 1) for node in ast.walk(ast.parse(source))
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+            and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES]
+
+
+def private_imports(source: str) -> list[str]:
+    """Names starting with an underscore that ``source`` imports from another module."""
+    return [f"{node.module}.{alias.name}" for node in ast.walk(ast.parse(source))
+            if isinstance(node, ast.ImportFrom) and node.module != "__future__"
+            for alias in node.names if alias.name.startswith("_")]
+
+
+def results_paths(source: str) -> list[str]:
+    """String constants (f-string parts included) of ``source`` that start a ``results/`` path."""
+    return [node.value for node in ast.walk(ast.parse(source))
+            if isinstance(node, ast.Constant) and isinstance(node.value, str)
+            and node.value.lstrip("./").startswith("results/")]
+
+
+def test_the_checks_find_what_they_look_for() -> None:
+    body = "\n".join(f"    x = {i}" for i in range(MAX_FUNCTION_LINES))
+    assert long_functions(f"def f():\n{body}\n") == [("f", MAX_FUNCTION_LINES + 1)]
+    assert long_functions(f"def f():\n{body[:-10]}\n") == []
+    assert private_imports("from freqbrdf.sh import _check, eval_sh\nfrom .io import read_exr") == ["freqbrdf.sh._check"]
+    assert results_paths('p = f"results/estimates/{obj}"\nq = "see results/ in the docs"') == ["results/estimates/"]
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=lambda p: str(p.relative_to(REPO / "workflow")))
+def test_functions_are_at_most_80_lines_and_import_no_private_names(path: Path) -> None:
+    source = path.read_text()
+    assert long_functions(source) == []
+    assert private_imports(source) == []
+
+
+@pytest.mark.parametrize("path", SCRIPTS, ids=lambda p: p.stem)
+def test_scripts_build_no_results_path(path: Path) -> None:
+    assert results_paths(path.read_text()) == []
