@@ -84,6 +84,9 @@ SWEEP = {
     "lm, tv 0.03": {"solver": "lm", "tv_weight": 0.03},
     "lm 20 sweeps, tv 0.03": {"solver": "lm", "tv_weight": 0.03, "sweeps": 20, "sweep_refit_every": 5},
     "lm, tv 0.1": {"solver": "lm", "tv_weight": 0.1},
+    "lr 0.05, tv 0.03, ggx lobe": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx"},
+    "lr 0.05, tv 0.01, ggx lobe": {"lr": 0.05, "tv_weight": 0.01, "lobe": "ggx"},
+    "lr 0.02, tv 0.03, ggx lobe": {"lr": 0.02, "tv_weight": 0.03, "lobe": "ggx"},
 }
 
 

@@ -38,6 +38,7 @@ rule entropy_agreement:
         settings={k: v for k, v in config["entropy_agreement"].items() if k != "captures"},
         spectrum=config["spectrum"],
         lmax=config["optimise"]["lmax"],
+        lobe=config["optimise"]["lobe"],
         max_depth=config["render"]["max_depth"],
         seed=lambda w: derived_seed(config["seed"], "entropy_agreement", w.object, w.env, w.poses),
     script:

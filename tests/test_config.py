@@ -140,9 +140,11 @@ def test_size_factor_is_one_on_the_default_and_grows_with_the_work(repo, default
 def test_optimise_settings_follow_the_config(default):
     from freqbrdf.optimise import OptimiseSettings, identifiable_roughness
 
-    opt = default["optimise"] | {"solver": "lm", "sweeps": 7, "sweep_refit_every": 3, "min_roughness": "auto"}
+    opt = default["optimise"] | {"solver": "lm", "sweeps": 7, "sweep_refit_every": 3, "min_roughness": "auto",
+                                 "lobe": "gaussian"}
     settings = OptimiseSettings.from_config(opt, workers=2)
     assert (settings.solver, settings.sweeps, settings.sweep_refit_every, settings.workers) == ("lm", 7, 3, 2)
+    assert settings.lobe == "gaussian" and OptimiseSettings.from_config(default["optimise"]).lobe == "ggx"
     assert settings.min_roughness == identifiable_roughness(opt["lmax"])
     assert (settings.iterations, settings.lr, settings.tv_weight) == (opt["iterations"], opt["lr"], opt["tv_weight"])
     assert OptimiseSettings.from_config(default["optimise"]).solver == "adam"

@@ -13,10 +13,11 @@ from freqbrdf import optimise as op
 from freqbrdf import methods
 from freqbrdf import kernels, sh
 from freqbrdf.brdf import ALPHA_MIN, R0_DIELECTRIC
+from freqbrdf.lobes import ggx_lobe_spectrum, lobe_table
 
 OPTIMISER_METHODS = methods.methods_of("optimise_svbrdf")
 
-LMAX = 8  # degree of the model's light in these tests (the pipeline's default is 16)
+LMAX = 8  # degree of the model's light in these tests (the pipeline's default is 20)
 
 
 # --------------------------------------------------------------------------
@@ -106,12 +107,12 @@ def variant(method: str) -> tuple[bool, bool, bool]:
     return entry.shadowing, entry.masking, entry.prefiltered
 
 
-def render(scene: dict, params: dict, method: str) -> np.ndarray:
+def render(scene: dict, params: dict, method: str, lobe: str = "gaussian") -> np.ndarray:
     """Noise-free observations of ``params`` by the model of ``method`` itself."""
     shadowing, masking, _ = variant(method)
     problem = problem_of(scene)
     light = terms(scene, problem, params["roughness"], shadowing)
-    return op.forward(op.pack_params(params, problem.n_texels), problem, light, masking)
+    return op.forward(op.pack_params(params, problem.n_texels), problem, light, masking, lobe_table(lobe, LMAX))
 
 
 def run(
@@ -204,9 +205,11 @@ def test_unshadowed_light_terms_are_the_environment_sh_at_the_mirror_direction(s
     np.testing.assert_allclose(light.sum(axis=1), expected, rtol=1e-5, atol=1e-6 * np.abs(expected).max())
 
 
+@pytest.mark.parametrize("lobe", ["gaussian", "ggx"])
 @pytest.mark.parametrize("method", list(OPTIMISER_METHODS))
-def test_forward_matches_a_direct_evaluation_of_the_model(small: dict, method: str) -> None:
-    """B = (1 - m) base E / pi + F G1m sum_lm exp(-(alpha l)^2) Lg_lm Y_lm(w_r), written out independently."""
+def test_forward_matches_a_direct_evaluation_of_the_model(small: dict, method: str, lobe: str) -> None:
+    """B = (1 - m) base E / pi + F G1m sum_lm f_l(alpha) Lg_lm Y_lm(w_r), written out independently
+    (f_l: the Gaussian exp(-(alpha l)^2), or GGX's spectrum computed at each alpha, not interpolated)."""
     shadowing, masking, _ = variant(method)
     params = random_params(18, seed=4)
     params["roughness"][:3] = [0.0, 0.02, 1.0]  # the alpha clamp and the extremes
@@ -221,7 +224,10 @@ def test_forward_matches_a_direct_evaluation_of_the_model(small: dict, method: s
         lg = lt.shadowed_light(small["light"], small["frame"][:, 2], alpha[:, 0]).astype(np.float64)
     else:
         lg = np.broadcast_to(sh.project_equirect(small["envmap"], LMAX), (18, sh.n_coeffs(LMAX), 3))
-    filt = np.exp(-((alpha * sh.sh_degrees(LMAX)) ** 2))
+    if lobe == "gaussian":
+        filt = np.exp(-((alpha * sh.sh_degrees(LMAX)) ** 2))
+    else:
+        filt = ggx_lobe_spectrum(alpha[:, 0], LMAX)[0][:, sh.sh_degrees(LMAX)]
     spec = np.einsum("tkn,tn,tnc->tkc", sh.real_sh(mirror, LMAX), filt, lg)
     r0 = 0.04 * (1 - m) + m * base[:, None, :]
     fresnel = r0 + (1 - r0) * (1 - cos[..., None]) ** 5
@@ -230,7 +236,8 @@ def test_forward_matches_a_direct_evaluation_of_the_model(small: dict, method: s
     ) * spec
     expected[w == 0] = 0.0
     # float32 light terms
-    np.testing.assert_allclose(render(small, params, method), expected, rtol=1e-5, atol=1e-6 * np.abs(expected).max())
+    np.testing.assert_allclose(render(small, params, method, lobe), expected, rtol=1e-5,
+                               atol=1e-6 * np.abs(expected).max())
 
 
 @pytest.mark.parametrize("method", list(OPTIMISER_METHODS))
@@ -293,9 +300,11 @@ def test_variants_differ_only_where_they_should() -> None:
 # --------------------------------------------------------------------------
 # gradient
 # --------------------------------------------------------------------------
+@pytest.mark.parametrize("lobe", ["gaussian", "ggx"])
 @pytest.mark.parametrize("method", list(OPTIMISER_METHODS))
-def test_gradient_matches_central_differences(small: dict, method: str) -> None:
+def test_gradient_matches_central_differences(small: dict, method: str, lobe: str) -> None:
     shadowing, masking, _ = variant(method)
+    table = lobe_table(lobe, LMAX)
     problem = problem_of(small, small["radiance"])
     rng = np.random.default_rng(7)
     x = rng.uniform(0.1, 0.9, (18, 5))  # roughness >= 0.1: away from the alpha clamp
@@ -303,9 +312,9 @@ def test_gradient_matches_central_differences(small: dict, method: str) -> None:
     tv_weight = 0.05  # large enough that TV is a sizeable part of every gradient
 
     def loss(xx: np.ndarray) -> float:
-        return op.loss_and_gradient(xx, problem, light, masking, tv_weight)[0]
+        return op.loss_and_gradient(xx, problem, light, masking, tv_weight, lobe=table)[0]
 
-    _, grad = op.loss_and_gradient(x, problem, light, masking, tv_weight)
+    _, grad = op.loss_and_gradient(x, problem, light, masking, tv_weight, lobe=table)
     h = 1e-6
     fd = np.zeros_like(x)
     for i in range(x.shape[0]):
@@ -317,7 +326,7 @@ def test_gradient_matches_central_differences(small: dict, method: str) -> None:
         rel = np.linalg.norm(fd[:, cols] - grad[:, cols]) / np.linalg.norm(grad[:, cols])
         assert rel < 1e-6, f"{method} {name}: relative error {rel:.2e}"
     # the TV part is the TV gradient
-    _, grad0 = op.loss_and_gradient(x, problem, light, masking, 0.0)
+    _, grad0 = op.loss_and_gradient(x, problem, light, masking, 0.0, lobe=table)
     np.testing.assert_allclose(grad - grad0, tv_weight * op.total_variation(x, problem.neighbours)[1], atol=1e-15)
 
 
@@ -362,9 +371,10 @@ def capture() -> tuple[dict, dict]:
     return synthetic_scene(200, 24, seed=0), random_params(200, seed=1)
 
 
-@pytest.mark.parametrize("method", ["freq", "rh2001"])
+@pytest.mark.parametrize("method, lobe", [("freq", "gaussian"), ("rh2001", "gaussian"), ("freq", "ggx")])
 @pytest.mark.parametrize("solver", ["adam", "lm"])
-def test_self_consistency_recovers_the_parameters(capture: tuple[dict, dict], method: str, solver: str) -> None:
+def test_self_consistency_recovers_the_parameters(capture: tuple[dict, dict], method: str, lobe: str,
+                                                  solver: str) -> None:
     """Noise-free observations of the model itself are fitted back from the grid start.
 
     Adam: same refit schedule as `optimise` (every 50 iterations) and float32, but
@@ -382,9 +392,9 @@ def test_self_consistency_recovers_the_parameters(capture: tuple[dict, dict], me
     iterations).
     """
     scene, truth = capture
-    radiance = render(scene, truth, method)
+    radiance = render(scene, truth, method, lobe)
     schedule = {"iterations": 300, "refit_every": 50} if solver == "adam" else {"sweeps": 30, "sweep_refit_every": 4}
-    est, curve = run(scene, radiance, method, solver=solver, tv_weight=0.0, **schedule)
+    est, curve = run(scene, radiance, method, solver=solver, tv_weight=0.0, lobe=lobe, **schedule)
     mse = {k: float(np.mean((est[k] - truth[k]) ** 2)) for k in TEXTURES}
     assert all(v < 1e-4 for v in mse.values()), mse
     assert curve[-1] < 0.5 * curve[0]
@@ -446,7 +456,8 @@ def test_lm_sweep_is_block_coordinate_descent(small: dict) -> None:
     assert previous < 0.8 * first
 
 
-def test_lm_converges_quadratically_from_near_the_truth(capture: tuple[dict, dict]) -> None:
+@pytest.mark.parametrize("lobe", ["gaussian", "ggx"])
+def test_lm_converges_quadratically_from_near_the_truth(capture: tuple[dict, dict], lobe: str) -> None:
     """Damped Gauss-Newton on noise-free observations: each sweep from 1e-3 off divides the error
     about a hundredfold (median 4e-12 after four, the worst texel 4e-7), which needs the exact
     Jacobian of the model (with a wrong entry a step is rejected or the error shrinks linearly)."""
@@ -456,7 +467,8 @@ def test_lm_converges_quadratically_from_near_the_truth(capture: tuple[dict, dic
     x_true = op.pack_params(truth, 200)
     problem = problem_of(scene)
     light = terms(scene, problem, truth["roughness"], True)  # held fixed, as between refits
-    problem = problem_of(scene, op.forward(x_true, problem, light, True))
+    table = lobe_table(lobe, LMAX)
+    problem = problem_of(scene, op.forward(x_true, problem, light, True, table))
     rng = np.random.default_rng(14)
     xp = (x_true + 1e-3 * rng.choice([-1.0, 1.0], x_true.shape))[problem.perm]
     lam = np.full(200, 1e-2)
@@ -464,7 +476,7 @@ def test_lm_converges_quadratically_from_near_the_truth(capture: tuple[dict, dic
         for texels in problem.colours:
             kernels.lm_sweep(xp, texels, problem.start, light, problem.radiance, problem.schlick, problem.tan2,
                              problem.irradiance_pi, True, ALPHA_MIN, R0_DIELECTRIC, problem.nb_start, problem.nb,
-                             1.0 / (3.0 * problem.n_pairs), 0.0, np.zeros(5), np.ones(5), 1e-2, 1e-2, lam, 4)
+                             1.0 / (3.0 * problem.n_pairs), 0.0, np.zeros(5), np.ones(5), 1e-2, 1e-2, lam, 4, table)
     error = np.abs(xp - x_true[problem.perm]).max(axis=1)
     assert np.median(error) < 1e-10 and error.max() < 1e-5
 

@@ -159,17 +159,47 @@ def shadowing_factors(normals: np.ndarray, directions: np.ndarray, alpha: np.nda
     _shadowing_factors(normals, directions, alpha, out)
 
 
+def _table(lobe: np.ndarray | None, light: np.ndarray) -> np.ndarray:
+    """``lobe`` (`freqbrdf.lobes.lobe_table`) checked against the light's degrees; None: the Gaussian."""
+    if lobe is None:
+        return np.empty((0, 2, light.shape[1]))
+    lobe = np.ascontiguousarray(lobe, np.float64)
+    if lobe.ndim != 3 or lobe.shape[1] != 2 or lobe.shape[2] < light.shape[1] or lobe.shape[0] == 1:
+        raise ValueError(f"lobe must be a lobe_table of degree >= {light.shape[1] - 1}, got shape {lobe.shape}")
+    return lobe
+
+
 @numba.njit(cache=True, inline="always")
-def _lobe(alpha, f, fd):  # pragma: no cover - compiled
-    """``f[l] = exp(-(alpha l)^2)`` and ``fd[l] = df/dalpha``, with one exp (``q^(l^2)``, ``q = exp(-alpha^2)``)."""
-    q = np.exp(-alpha * alpha)
-    step = q  # q^(2l - 1)
-    value = 1.0
+def _lobe(alpha, alpha_min, table, f, fd):  # pragma: no cover - compiled
+    """``f[l]``, the lobe's zonal spectrum at ``alpha``, and ``fd[l] = df/dalpha``.
+
+    An empty ``table`` is the paper's ``exp(-(alpha l)^2)``, with one exp (``q^(l^2)``,
+    ``q = exp(-alpha^2)``); otherwise the cubic Hermite interpolant of `freqbrdf.lobes.lobe_table`
+    in ``log alpha`` over ``[log alpha_min, 0]``, its derivative exact for the interpolant.
+    """
+    if table.shape[0] == 0:
+        q = np.exp(-alpha * alpha)
+        step = q  # q^(2l - 1)
+        value = 1.0
+        for l in range(f.shape[0]):
+            f[l] = value
+            fd[l] = -2.0 * alpha * l * l * value
+            value *= step
+            step *= q * q
+        return
+    u0 = np.log(alpha_min)
+    du = -u0 / (table.shape[0] - 1)
+    u = (np.log(min(max(alpha, alpha_min), 1.0)) - u0) / du
+    i = min(int(u), table.shape[0] - 2)
+    t = u - i
+    t2 = t * t
+    t3 = t2 * t
+    h00, h10, h01, h11 = 2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, 3 * t2 - 2 * t3, t3 - t2
+    g00, g10, g01, g11 = 6 * t2 - 6 * t, 3 * t2 - 4 * t + 1, 6 * t - 6 * t2, 3 * t2 - 2 * t
     for l in range(f.shape[0]):
-        f[l] = value
-        fd[l] = -2.0 * alpha * l * l * value
-        value *= step
-        step *= q * q
+        a, ma, b, mb = table[i, 0, l], table[i, 1, l] * du, table[i + 1, 0, l], table[i + 1, 1, l] * du
+        f[l] = h00 * a + h10 * ma + h01 * b + h11 * mb
+        fd[l] = (g00 * a + g10 * ma + g01 * b + g11 * mb) / (du * alpha)
 
 
 @numba.njit(cache=True, inline="always")
@@ -211,7 +241,7 @@ def _pair_terms(alpha, f, fd, light, n, tan2, masking, work):  # pragma: no cove
 
 
 @numba.njit(parallel=True, cache=True, fastmath=True)
-def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
+def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe,
                       grad, loss, model):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
@@ -226,7 +256,7 @@ def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, a
             r = x[s, 3]
             m = x[s, 4]
             alpha = max(r * r, alpha_min)
-            _lobe(alpha, f, fd)
+            _lobe(alpha, alpha_min, lobe, f, fd)
             signs[:] = 0.0
             sum_d = 0.0
             total = 0.0
@@ -255,12 +285,12 @@ def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, a
 def l1_loss_gradient(
     x: np.ndarray, start: np.ndarray, light: np.ndarray, radiance: np.ndarray, schlick: np.ndarray,
     tan2: np.ndarray, e_pi: np.ndarray, masking: bool, alpha_min: float, r0_dielectric: float,
-    model: np.ndarray | None = None,
+    model: np.ndarray | None = None, lobe: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-texel L1 data term of the mixed model and its gradient (paper Eqs. 11 and 13).
 
     For the pairs ``n`` of texel ``s`` (``start[s] <= n < start[s+1]``):
-    ``B = (1 - m) base E / pi + F G1m sum_l exp(-(alpha l)^2) light[n, l]``,
+    ``B = (1 - m) base E / pi + F G1m sum_l f_l(alpha) light[n, l]``,
     ``F = R0 (1 - c5) + c5``, ``R0 = r0_dielectric (1 - m) + m base``,
     ``alpha = max(r^2, alpha_min)`` (derivative ``2 max(r, sqrt(alpha_min))``,
     as `freqbrdf.brdf.alpha_from_roughness`).
@@ -285,6 +315,9 @@ def l1_loss_gradient(
         Clamp of alpha and the dielectric's normal reflectance.
     model : numpy.ndarray, optional
         Shape ``(N, 3)``, float64: filled with the model radiance.
+    lobe : numpy.ndarray, optional
+        The lobe spectrum ``f_l`` (`freqbrdf.lobes.lobe_table`); default the paper's
+        ``exp(-(alpha l)^2)``.
 
     Returns
     -------
@@ -295,13 +328,13 @@ def l1_loss_gradient(
     """
     grad = np.empty((x.shape[0], 5))
     loss = np.empty(x.shape[0])
-    _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, grad,
+    _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, _table(lobe, light), grad,
                       loss, np.empty((0, 3)) if model is None else model)
     return loss, grad
 
 
 @numba.njit(parallel=True, cache=True)
-def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, r_grid, m_grid,
+def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, r_grid, m_grid,
                  max_pairs, out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
@@ -318,7 +351,7 @@ def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
             best = np.inf
             for r in r_grid:
                 alpha = max(r * r, alpha_min)
-                _lobe(alpha, f, fd)
+                _lobe(alpha, alpha_min, lobe, f, fd)
                 for i in range(k):
                     g1 = _masking(alpha, tan2[lo + i], masking)[0]
                     for c in range(3):
@@ -354,7 +387,7 @@ def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
 def grid_search(
     start: np.ndarray, light: np.ndarray, radiance: np.ndarray, schlick: np.ndarray, tan2: np.ndarray,
     e_pi: np.ndarray, masking: bool, alpha_min: float, r0_dielectric: float, roughness: np.ndarray,
-    metallic: np.ndarray,
+    metallic: np.ndarray, lobe: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per texel, the (roughness, metallic) grid point of least L1 data term, with its best base colour.
 
@@ -369,6 +402,8 @@ def grid_search(
         As for `l1_loss_gradient`.
     roughness, metallic : numpy.ndarray
         1-D grids, float64.
+    lobe : numpy.ndarray, optional
+        As for `l1_loss_gradient`.
 
     Returns
     -------
@@ -376,14 +411,14 @@ def grid_search(
         Shape ``(S, 5)``, float64: base colour RGB, roughness, metallic.
     """
     out = np.zeros((start.shape[0] - 1, 5))
-    _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
+    _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, _table(lobe, light),
                  np.asarray(roughness, dtype=np.float64), np.asarray(metallic, dtype=np.float64),
                  int(np.diff(start).max(initial=0)), out)
     return out
 
 
 @numba.njit(cache=True, inline="always")
-def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
+def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe,
                 nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
     """Objective of texel s at parameters ``xs`` (5,): its L1 data term times ``data_scale`` plus
     ``tv_scale`` times the TV of its edges, the neighbours held at ``x`` (S, 5); ``f``, ``fd``
@@ -391,7 +426,7 @@ def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
     cost = 0.0
     if s < start.shape[0] - 1:
         alpha = max(xs[3] * xs[3], alpha_min)
-        _lobe(alpha, f, fd)
+        _lobe(alpha, alpha_min, lobe, f, fd)
         m = xs[4]
         for n in range(start[s], start[s + 1]):
             _pair_terms(alpha, f, fd, light, n, tan2, masking, work)
@@ -438,7 +473,7 @@ def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
-def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, nb_start, nb,
+def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, nb_start, nb,
                  data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h, g):  # pragma: no cover - compiled
     """Texel s's objective at ``x[s]``, and in ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton
     matrix and gradient of its reweighted quadratic (see `lm_sweep`); the rest is scratch."""
@@ -456,7 +491,7 @@ def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
         m = x[s, 4]
         alpha = max(r * r, alpha_min)
         dalpha = 2.0 * max(r, np.sqrt(alpha_min))
-        _lobe(alpha, f, fd)
+        _lobe(alpha, alpha_min, lobe, f, fd)
         for p in range(lo, hi):
             _pair_terms(alpha, f, fd, light, p, tan2, masking, work)
             c5 = schlick[p]
@@ -529,7 +564,7 @@ def _predicted_gain(h, g, step):  # pragma: no cover - compiled
 
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
-def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
+def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe,
               nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
               cost_out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
@@ -547,7 +582,7 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
         for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
             s = texels[i]
             cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                r0_dielectric, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor,
+                                r0_dielectric, lobe, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor,
                                 f, fd, work, h, g)
             cost_out[i] = cost
             lam_s = lam[s]
@@ -562,7 +597,7 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                 for q in range(5):
                     trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
                 new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                  r0_dielectric, nb_start, nb, x, data_scale, tv_scale, f, fd, work)
+                                  r0_dielectric, lobe, nb_start, nb, x, data_scale, tv_scale, f, fd, work)
                 if new < cost:
                     x[s, :] = trial
                     lam_s = max(lam_s * _LM_DOWN, _LM_MIN)
@@ -576,6 +611,7 @@ def lm_sweep(
     schlick: np.ndarray, tan2: np.ndarray, e_pi: np.ndarray, masking: bool, alpha_min: float,
     r0_dielectric: float, nb_start: np.ndarray, nb: np.ndarray, data_scale: float, tv_scale: float,
     lower: np.ndarray, upper: np.ndarray, irls_floor: float, tv_floor: float, lam: np.ndarray, tries: int,
+    lobe: np.ndarray | None = None,
 ) -> np.ndarray:
     """One damped Gauss-Newton (Levenberg-Marquardt) step per texel of ``texels`` on the L1 + TV objective.
 
@@ -620,6 +656,8 @@ def lm_sweep(
         Shape ``(S,)``: damping per texel, updated in place.
     tries : int
         Attempts per texel.
+    lobe : numpy.ndarray, optional
+        As for `l1_loss_gradient`.
 
     Returns
     -------
@@ -628,6 +666,6 @@ def lm_sweep(
     """
     cost = np.empty(texels.shape[0])
     _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
-              nb_start, nb, float(data_scale), float(tv_scale), lower, upper, float(irls_floor), float(tv_floor),
+              _table(lobe, light), nb_start, nb, float(data_scale), float(tv_scale), lower, upper, float(irls_floor), float(tv_floor),
               lam, int(tries), cost)
     return cost

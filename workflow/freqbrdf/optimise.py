@@ -90,6 +90,7 @@ from .artefacts import Observations
 from .brdf import ALPHA_MIN, R0_DIELECTRIC, TEXTURES, alpha_from_roughness, tan2_theta
 from .light import LightQuadrature, irradiance, light_quadrature, shadowed_light
 from .methods import get_method
+from .lobes import LOBES, lobe_table
 from .kernels import degree_sums, grid_search, l1_loss_gradient, lm_sweep, set_threads
 from .sh import recurrence_tables
 from .shfit import mirror_directions
@@ -143,6 +144,9 @@ class OptimiseSettings:
         ``lm``: per-texel Levenberg-Marquardt on reweighted least squares,
         the atlas's two checkerboard colours in turn (`lm_sweep`); ``adam``:
         Adam on all texels at once (the authors' code).
+    lobe : {"gaussian", "ggx"}
+        Zonal spectrum of the specular lobe (`freqbrdf.lobes.LOBES`): the
+        paper's ``exp(-(alpha l)^2)`` or GGX's own (`freqbrdf.lobes.ggx_lobe_spectrum`).
     sweeps : int
         ``lm``: sweeps over both colours (one damped Gauss-Newton step per texel each).
     sweep_refit_every : int
@@ -190,6 +194,7 @@ class OptimiseSettings:
     """
 
     solver: str = "adam"
+    lobe: str = "gaussian"
     sweeps: int = 12
     sweep_refit_every: int = 4
     sweep_tolerance: float = 1e-4
@@ -213,6 +218,8 @@ class OptimiseSettings:
     def __post_init__(self) -> None:
         if self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
+        if self.lobe not in LOBES:
+            raise ValueError(f"lobe must be one of {LOBES}, got {self.lobe!r}")
         check_int(self.sweeps, "sweeps", 0)
         check_int(self.sweep_refit_every, "sweep_refit_every", 1)
         for name in ("sweep_tolerance", "irls_floor", "tv_floor", "damping"):
@@ -244,7 +251,7 @@ class OptimiseSettings:
         """Settings from config ``optimise`` (``min_roughness: auto`` is `identifiable_roughness`
         of ``lmax``; ``init: grid`` starts from the grid)."""
         bound = config["min_roughness"]
-        return cls(solver=config["solver"], sweeps=config["sweeps"], sweep_refit_every=config["sweep_refit_every"],
+        return cls(solver=config["solver"], lobe=config["lobe"], sweeps=config["sweeps"], sweep_refit_every=config["sweep_refit_every"],
                    iterations=config["iterations"], lr=config["lr"], refit_every=config["refit_every"],
                    tv_weight=config["tv_weight"], workers=workers, grid_start=config["init"] == "grid",
                    min_roughness=identifiable_roughness(config["lmax"]) if bound == "auto" else float(bound))
@@ -722,19 +729,21 @@ def total_variation(x: np.ndarray, neighbours: np.ndarray) -> tuple[float, np.nd
     return _tv(x, op, op.T.tocsr())
 
 
-def _l1(xp: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, model: np.ndarray | None = None):
+def _l1(xp: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, model: np.ndarray | None = None,
+        lobe: np.ndarray | None = None):
     """Per-texel L1 data term and gradient of the observed texels (`freqbrdf.kernels.l1_loss_gradient`)."""
     return l1_loss_gradient(
         np.ascontiguousarray(xp[: problem.n_observed]), problem.start, light, problem.radiance, problem.schlick,
-        problem.tan2, problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, model,
+        problem.tan2, problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, model, lobe,
     )
 
 
 def _loss_and_gradient(
-    xp: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float
+    xp: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float,
+    lobe: np.ndarray | None = None,
 ) -> tuple[float, np.ndarray]:
     """`loss_and_gradient` of internal-order ``xp`` (texel-order sums, so independent of threads)."""
-    loss_per_texel, grad_obs = _l1(xp, problem, light, masking)
+    loss_per_texel, grad_obs = _l1(xp, problem, light, masking, lobe=lobe)
     scale = 1.0 / (3.0 * problem.n_pairs)  # mean over pairs and channels
     grad = np.zeros_like(xp)
     grad[: problem.n_observed] = grad_obs * scale
@@ -746,7 +755,8 @@ def _loss_and_gradient(
     return float(loss), grad
 
 
-def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool) -> np.ndarray:
+def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool,
+            lobe: np.ndarray | None = None) -> np.ndarray:
     """Model radiance of every observation.
 
     Parameters
@@ -759,6 +769,8 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool) -
         Shape ``(N, L, 3)``: `light_terms` (its ``shadowing`` picks the variant).
     masking : bool
         Apply ``G1(theta_o)`` to the specular term.
+    lobe : numpy.ndarray, optional
+        The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`); default the paper's Gaussian.
 
     Returns
     -------
@@ -768,14 +780,15 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool) -
     x = _check_x(x, problem)
     p = _check_light(light, problem)
     model = np.empty((problem.n_pairs, 3))
-    _l1(x[problem.perm], problem, p, masking, model)
+    _l1(x[problem.perm], problem, p, masking, model, lobe)
     out = np.zeros((problem.n_texels, problem.n_views, 3))
     out[problem.pair_texel, problem.pair_view] = model
     return out
 
 
 def loss_and_gradient(
-    x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float = 1e-3, workers: int = 1
+    x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float = 1e-3, workers: int = 1,
+    lobe: np.ndarray | None = None,
 ) -> tuple[float, np.ndarray]:
     """Objective of paper Eq. 13 plus total variation (section 4.3) and its analytic gradient, light terms held fixed.
 
@@ -786,7 +799,8 @@ def loss_and_gradient(
     - ``dL/dm = sum_kc g [-base_c E_c / pi + (base_c - 0.04)(1 - c5) G1m Spec_c]``;
     - ``dL/dr = 2 r sum_kc g F_c [G1m' Spec_c + G1m sum_l f_l' P_lc]`` with
       ``G1m' = dG1/dalpha = -2 alpha tan^2 / (s (1 + s)^2)``,
-      ``s = sqrt(1 + alpha^2 tan^2)``, ``f_l' = -2 alpha l^2 exp(-(alpha l)^2)``
+      ``s = sqrt(1 + alpha^2 tan^2)``, ``f_l' = -2 alpha l^2 exp(-(alpha l)^2)`` (the Gaussian lobe;
+      GGX's from its table, `freqbrdf.lobes.lobe_table`)
       (where alpha is clamped at `ALPHA_MIN`, ``2 r`` becomes ``2 sqrt(ALPHA_MIN)``:
       a straight-through derivative, see `alpha_from_roughness`);
 
@@ -806,6 +820,8 @@ def loss_and_gradient(
         Weight of TV, ``>= 0``.
     workers : int
         Threads.
+    lobe : numpy.ndarray, optional
+        The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`); default the paper's Gaussian.
 
     Returns
     -------
@@ -819,7 +835,7 @@ def loss_and_gradient(
     if not (np.isfinite(tv_weight) and tv_weight >= 0):
         raise ValueError(f"tv_weight must be a finite number >= 0, got {tv_weight!r}")
     set_threads(check_int(workers, "workers", 1))
-    loss, grad_p = _loss_and_gradient(x[problem.perm], problem, p, masking, tv_weight)
+    loss, grad_p = _loss_and_gradient(x[problem.perm], problem, p, masking, tv_weight, lobe)
     grad = np.empty_like(grad_p)
     grad[problem.perm] = grad_p
     return loss, grad
@@ -827,7 +843,7 @@ def loss_and_gradient(
 
 def grid_start(
     problem: Problem, light: np.ndarray, masking: bool, roughness: np.ndarray, metallic: np.ndarray,
-    workers: int = 1,
+    workers: int = 1, lobe: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per-texel start of the optimiser: the best of a (roughness x metallic) grid.
 
@@ -852,6 +868,8 @@ def grid_start(
         1-D grids of candidate values in [0, 1].
     workers : int
         Threads.
+    lobe : numpy.ndarray, optional
+        The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`); default the paper's Gaussian.
 
     Returns
     -------
@@ -863,7 +881,7 @@ def grid_start(
     xp = np.full((problem.n_texels, _N_PARAMS), 0.5)
     xp[: problem.n_observed] = grid_search(
         problem.start, p, problem.radiance, problem.schlick, problem.tan2, problem.irradiance_pi, masking,
-        ALPHA_MIN, R0_DIELECTRIC, roughness, metallic,
+        ALPHA_MIN, R0_DIELECTRIC, roughness, metallic, lobe,
     )
     x = np.empty_like(xp)
     x[problem.perm] = xp
@@ -954,9 +972,10 @@ def optimise(
     if not isinstance(settings, OptimiseSettings):
         raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
     problem = build_problem(obs, irradiance, settings.dtype)
-    xp = _start(problem, light, init, shadowing, masking, settings)[problem.perm]  # internal order (see Problem)
+    lobe = lobe_table(settings.lobe, light.lmax)
+    xp = _start(problem, light, init, shadowing, masking, lobe, settings)[problem.perm]  # internal order (see Problem)
     descend = _descend_lm if settings.solver == "lm" else _descend
-    xp, curve = descend(xp, problem, light, shadowing, masking, settings)
+    xp, curve = descend(xp, problem, light, shadowing, masking, lobe, settings)
     x = np.empty_like(xp)
     x[problem.perm] = xp
     return unpack_params(x), curve
@@ -964,7 +983,7 @@ def optimise(
 
 def _start(
     problem: Problem, light: LightQuadrature, init: Mapping[str, np.ndarray] | None, shadowing: bool, masking: bool,
-    settings: OptimiseSettings,
+    lobe: np.ndarray, settings: OptimiseSettings,
 ) -> np.ndarray:
     """Packed start parameters (T, 5): ``init``, else the grid start or 0.5 everywhere."""
     if init is not None:
@@ -975,7 +994,7 @@ def _start(
         return grid_start(
             problem, light_terms(np.full(problem.n_texels, 0.5), problem, shadowing, light, settings.workers),
             masking, np.linspace(0.0, 1.0, settings.grid_roughness), np.linspace(0.0, 1.0, settings.grid_metallic),
-            settings.workers,
+            settings.workers, lobe,
         )
     return np.full((problem.n_texels, _N_PARAMS), 0.5)
 
@@ -1007,7 +1026,7 @@ class _ShadowedLight:
 
 
 def _descend_lm(
-    xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool,
+    xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool, lobe: np.ndarray,
     settings: OptimiseSettings,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Levenberg-Marquardt sweeps from ``xp`` (internal order; `freqbrdf.kernels.lm_sweep`), refitting
@@ -1033,7 +1052,7 @@ def _descend_lm(
     for sweep in range(settings.sweeps):
         if sweep and sweep % settings.sweep_refit_every == 0 and lg.refit(xp):
             last_refit = sweep
-        loss = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight)[0]
+        loss = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight, lobe)[0]
         if sweep > last_refit and curve[-1] - loss < settings.sweep_tolerance * curve[-1]:
             break
         curve.append(loss)
@@ -1041,12 +1060,12 @@ def _descend_lm(
             lm_sweep(xp, texels, problem.start, lg.terms, problem.radiance, problem.schlick, problem.tan2,
                      problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, problem.nb_start, problem.nb,
                      1.0 / (3.0 * problem.n_pairs), settings.tv_weight / n_edges, lower, upper,
-                     settings.irls_floor, settings.tv_floor, lam, _LM_TRIES)
+                     settings.irls_floor, settings.tv_floor, lam, _LM_TRIES, lobe)
     return xp, np.asarray(curve)
 
 
 def _descend(
-    xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool,
+    xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool, lobe: np.ndarray,
     settings: OptimiseSettings,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Adam from ``xp`` (internal order), refitting the shadowed light every ``refit_every`` steps;
@@ -1063,7 +1082,7 @@ def _descend(
     for it in range(settings.iterations):
         if it and it % settings.refit_every == 0:
             lg.refit(xp)
-        curve[it], grad = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight)
+        curve[it], grad = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight, lobe)
         xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
         xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     return xp, curve
