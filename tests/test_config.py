@@ -145,6 +145,8 @@ def test_optimise_settings_follow_the_config(default):
     settings = OptimiseSettings.from_config(opt, workers=2)
     assert (settings.solver, settings.sweeps, settings.sweep_refit_every, settings.workers) == ("lm", 7, 3, 2)
     assert settings.lobe == "gaussian" and OptimiseSettings.from_config(default["optimise"]).lobe == "ggx"
-    assert settings.min_roughness == identifiable_roughness(opt["lmax"])
+    assert settings.min_roughness == identifiable_roughness(opt["lmax"], lobe="gaussian")
+    ggx = OptimiseSettings.from_config(opt | {"lobe": "ggx"})
+    assert ggx.min_roughness == identifiable_roughness(opt["lmax"], lobe="ggx") > settings.min_roughness
     assert (settings.iterations, settings.lr, settings.tv_weight) == (opt["iterations"], opt["lr"], opt["tv_weight"])
     assert OptimiseSettings.from_config(default["optimise"]).solver == "adam"

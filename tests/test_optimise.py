@@ -606,6 +606,11 @@ def test_identifiable_roughness_is_where_the_lobe_fits_below_the_degree() -> Non
     assert op.identifiable_roughness(6) > op.identifiable_roughness(16) > r
     with pytest.raises(ValueError, match="tail must be in"):
         op.identifiable_roughness(20, tail=1.0)
+    # GGX's sharp peak keeps more above l*: 5% of its weight there at a larger roughness
+    r_ggx = op.identifiable_roughness(20, lobe="ggx")
+    f = ggx_lobe_spectrum(np.array([r_ggx**2, (r_ggx - 0.01) ** 2]), 400)[0] * (2 * np.arange(401) + 1)
+    share = f[:, 21:].sum(axis=1) / f.sum(axis=1)
+    assert r_ggx > r + 0.05 and share[0] < 0.05 < share[1]
 
 
 def test_partial_refit_matches_a_full_fit_of_the_moved_texels(small: dict) -> None:

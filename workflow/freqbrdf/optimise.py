@@ -90,7 +90,7 @@ from .artefacts import Observations
 from .brdf import ALPHA_MIN, R0_DIELECTRIC, TEXTURES, alpha_from_roughness, tan2_theta
 from .light import LightQuadrature, irradiance, light_quadrature, shadowed_light
 from .methods import get_method
-from .lobes import LOBES, lobe_table
+from .lobes import LOBES, ggx_lobe_spectrum, lobe_table
 from .kernels import degree_sums, grid_search, l1_loss_gradient, lm_sweep, set_threads
 from .sh import recurrence_tables
 from .shfit import mirror_directions
@@ -254,7 +254,8 @@ class OptimiseSettings:
         return cls(solver=config["solver"], lobe=config["lobe"], sweeps=config["sweeps"], sweep_refit_every=config["sweep_refit_every"],
                    iterations=config["iterations"], lr=config["lr"], refit_every=config["refit_every"],
                    tv_weight=config["tv_weight"], workers=workers, grid_start=config["init"] == "grid",
-                   min_roughness=identifiable_roughness(config["lmax"]) if bound == "auto" else float(bound))
+                   min_roughness=identifiable_roughness(config["lmax"], lobe=config["lobe"]) if bound == "auto"
+                   else float(bound))
 
 
 def estimate_light(envmap: np.ndarray, obs: Observations, method: str, lmax: int) -> tuple[LightQuadrature, np.ndarray]:
@@ -270,7 +271,7 @@ def estimate_light(envmap: np.ndarray, obs: Observations, method: str, lmax: int
 # --------------------------------------------------------------------------
 
 
-def identifiable_roughness(lmax: int, tail: float = 0.05) -> float:
+def identifiable_roughness(lmax: int, tail: float = 0.05, lobe: str = "gaussian") -> float:
     """Smallest roughness whose lobe the model at degree l* represents.
 
     The lobe ``exp(-(alpha l)^2)`` applied to a point light has its value at
@@ -279,6 +280,10 @@ def identifiable_roughness(lmax: int, tail: float = 0.05) -> float:
     below ``tail`` gives ``alpha >= sqrt(ln(1 / tail)) / (l* + 1)``, and
     ``roughness = sqrt(alpha)``: 0.29 at l* = 20 (measured on noise-free texels
     under the sun: roughness 0.3 recovered within 0.04, 0.25 off by up to 0.13).
+    GGX's spectrum (`freqbrdf.lobes.ggx_lobe_spectrum`) keeps more of the high
+    degrees; its share above l* is summed numerically (to degree 16 (l* + 1))
+    and the smallest alpha of a 1e-3 grid where it is below ``tail`` taken:
+    0.356 at l* = 20.
 
     Parameters
     ----------
@@ -286,6 +291,8 @@ def identifiable_roughness(lmax: int, tail: float = 0.05) -> float:
         Degree l* of the model's light.
     tail : float
         Largest share of the lobe allowed above l*, in (0, 1).
+    lobe : {"gaussian", "ggx"}
+        The lobe (`freqbrdf.lobes.LOBES`).
 
     Returns
     -------
@@ -295,7 +302,16 @@ def identifiable_roughness(lmax: int, tail: float = 0.05) -> float:
     lmax = check_int(lmax, "lmax", 0)
     if not 0.0 < tail < 1.0:
         raise ValueError(f"tail must be in (0, 1), got {tail!r}")
-    return float(np.sqrt(min(np.sqrt(np.log(1.0 / tail)) / (lmax + 1), 1.0)))
+    if lobe not in LOBES:
+        raise ValueError(f"lobe must be one of {LOBES}, got {lobe!r}")
+    if lobe == "gaussian":
+        return float(np.sqrt(min(np.sqrt(np.log(1.0 / tail)) / (lmax + 1), 1.0)))
+    alpha = np.arange(1, 1001) * 1e-3
+    degrees = np.arange(16 * (lmax + 1) + 1)
+    weight = (2 * degrees + 1) * ggx_lobe_spectrum(alpha, degrees[-1])[0]
+    share = weight[:, lmax + 1 :].sum(axis=1) / weight.sum(axis=1)
+    below = np.nonzero(share < tail)[0]
+    return float(np.sqrt(alpha[below[0]] if below.size else 1.0))
 
 
 def atlas_neighbours(texel: np.ndarray, resolution: int) -> np.ndarray:
