@@ -87,6 +87,8 @@ SWEEP = {
     "lr 0.05, tv 0.03, ggx lobe": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx"},
     "lr 0.05, tv 0.01, ggx lobe": {"lr": 0.05, "tv_weight": 0.01, "lobe": "ggx"},
     "lr 0.02, tv 0.03, ggx lobe": {"lr": 0.02, "tv_weight": 0.03, "lobe": "ggx"},
+    "lr 0.05, tv 0.03, ggx lobe, lmax 24": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx", "lmax": 24},
+    "lr 0.05, tv 0.03, ggx lobe, lmax 28": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx", "lmax": 28},
 }
 
 

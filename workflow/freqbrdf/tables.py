@@ -854,7 +854,8 @@ def _ablation_claim(df: pd.DataFrame, paper: PaperResults) -> Claim:
         f"MSE {words} (Table 4)",
         "MSE " + ", ".join(f"{word} {fmt(value)}" for word, value in mse.items()) if known else MISSING,
         _verdict(ordered if known else None),
-        f"MSE({names['both']}) < MSE({names['masking']}), MSE({names['shadowing']}) < MSE({names['neither']})",
+        f"MSE({names['both']}) < MSE({names['shadowing']}), MSE({names['masking']}); "
+        f"MSE({names['shadowing']}), MSE({names['masking']}) < MSE({names['neither']})",
     )
 
 

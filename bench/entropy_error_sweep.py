@@ -1,0 +1,74 @@
+"""Pearson correlation of the spectrum entropy with ``freq``'s per-texel error, per entropy setting.
+
+For each capture, the pipeline's SH fit (``results/sh``) is searched again
+with every combination of `spectrum.normalise` (``light``, ``reference``),
+`spectrum.combine` (``min``, ``luminance``) and a range of `spectrum.sigma`,
+and each entropy is correlated (Pearson, over the observed texels) with the
+squared parameter error of the run's ``freq`` estimate: the criterion that
+chose `spectrum.sigma`. Choose on the tuning set (config/tuning.yaml); on
+the reported captures it only shows how far the criterion moves.
+
+    FREQBRDF_RESULTS=<tuning clone>/results python bench/entropy_error_sweep.py \\
+        --captures die/museum die/overcast vase/museum vase/overcast
+    python bench/entropy_error_sweep.py --captures sphere/studio sphere/sunny torus/studio torus/sunny
+
+Writes ``bench/out/entropy_error.tsv``: one row per capture and setting, and their means (capture ``mean``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+import numpy as np
+
+from freqbrdf.artefacts import read_observations, read_sh_fit, read_svbrdf
+from freqbrdf.brdf import TEXTURES
+from freqbrdf.metrics import parameter_error_map, pearson
+from freqbrdf.spectrum import default_grid, residual_width, spectrum_search
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS = Path(os.environ.get("FREQBRDF_RESULTS", REPO / "results"))
+SETTINGS = [(sigma, combine, "light") for sigma in (0.001, 0.003, 0.01, 0.03) for combine in ("min", "luminance")]
+SETTINGS += [(sigma, combine, "reference") for sigma in (1e-5, 1e-4, 1e-3, 1e-2) for combine in ("min", "luminance")]
+
+
+def correlations(capture: str) -> list[float]:
+    """Pearson(entropy, freq's squared parameter error) of one capture, per entry of SETTINGS."""
+    obj, env = capture.split("/")
+    fit = read_sh_fit(RESULTS / "sh" / obj / env / "gt")
+    obs = read_observations(RESULTS / "observations" / obj / env / "gt")
+    truth = read_svbrdf({n: RESULTS / "objects" / obj / f"{n}.exr" for n in TEXTURES})
+    estimate = read_svbrdf(RESULTS / "estimates" / obj / env / "gt" / "freq")
+    seen = obs.observed
+    error = parameter_error_map(dict(truth), dict(estimate)).ravel()[obs.texels.texel][seen]
+    ks, alpha = default_grid(8, 8, alpha_min=fit.a_prime)
+    out = []
+    for sigma, combine, normalise in SETTINGS:
+        search = spectrum_search(fit.spectra_outgoing, fit.spectra_incoming, ks, residual_width(alpha, fit.a_prime),
+                                 sigma=sigma, combine=combine, observed=seen, normalise=normalise)
+        out.append(pearson(search.entropy[seen], error))
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--captures", nargs="+", required=True, help="object/env pairs")
+    args = parser.parse_args()
+    per_capture = {capture: correlations(capture) for capture in args.captures}
+    lines = ["capture\tnormalise\tcombine\tsigma\tpearson_entropy_error"]
+    for i, (sigma, combine, normalise) in enumerate(SETTINGS):
+        values = [r[i] for r in per_capture.values()]
+        lines += [f"{c}\t{normalise}\t{combine}\t{sigma:g}\t{r[i]:.3f}" for c, r in per_capture.items()]
+        lines.append(f"mean\t{normalise}\t{combine}\t{sigma:g}\t{np.mean(values):.3f}")
+        print(f"{normalise:9s} {combine:9s} sigma {sigma:<7g}", " ".join(f"{v:6.3f}" for v in values),
+              f"mean {np.mean(values):.3f}", flush=True)
+    out = REPO / "bench" / "out"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "entropy_error.tsv").write_text("\n".join(lines) + "\n")
+    print(f"written {out / 'entropy_error.tsv'}")
+
+
+if __name__ == "__main__":
+    main()
