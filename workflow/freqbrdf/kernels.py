@@ -328,8 +328,8 @@ def l1_loss_gradient(
     """
     grad = np.empty((x.shape[0], 5))
     loss = np.empty(x.shape[0])
-    _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, _table(lobe, light), grad,
-                      loss, np.empty((0, 3)) if model is None else model)
+    _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
+                      _table(lobe, light), grad, loss, np.empty((0, 3)) if model is None else model)
     return loss, grad
 
 
@@ -473,8 +473,9 @@ def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
-def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, nb_start, nb,
-                 data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h, g):  # pragma: no cover - compiled
+def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe,
+                 nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h,
+                 g):  # pragma: no cover - compiled
     """Texel s's objective at ``x[s]``, and in ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton
     matrix and gradient of its reweighted quadratic (see `lm_sweep`); the rest is scratch."""
     h[:] = 0.0
@@ -666,6 +667,6 @@ def lm_sweep(
     """
     cost = np.empty(texels.shape[0])
     _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
-              _table(lobe, light), nb_start, nb, float(data_scale), float(tv_scale), lower, upper, float(irls_floor), float(tv_floor),
-              lam, int(tries), cost)
+              _table(lobe, light), nb_start, nb, float(data_scale), float(tv_scale), lower, upper,
+              float(irls_floor), float(tv_floor), lam, int(tries), cost)
     return cost

@@ -251,7 +251,8 @@ class OptimiseSettings:
         """Settings from config ``optimise`` (``min_roughness: auto`` is `identifiable_roughness`
         of ``lmax``; ``init: grid`` starts from the grid)."""
         bound = config["min_roughness"]
-        return cls(solver=config["solver"], lobe=config["lobe"], sweeps=config["sweeps"], sweep_refit_every=config["sweep_refit_every"],
+        return cls(solver=config["solver"], lobe=config["lobe"], sweeps=config["sweeps"],
+                   sweep_refit_every=config["sweep_refit_every"],
                    iterations=config["iterations"], lr=config["lr"], refit_every=config["refit_every"],
                    tv_weight=config["tv_weight"], workers=workers, grid_start=config["init"] == "grid",
                    min_roughness=identifiable_roughness(config["lmax"], lobe=config["lobe"]) if bound == "auto"
