@@ -9,12 +9,15 @@ separable Smith masking-shadowing, Schlick's Fresnel at the half vector
 observation over every pixel of the environment map (128 x 256) above the
 texel's horizon. `freq` then fits them back (300 Adam steps at lr 0.01, no
 TV, the grid start, the light at degree 20) with each lobe, and the mean
-signed error of each (roughness, metallic) group is printed.
+signed error of each (roughness, metallic) group is printed. Then, at the
+true parameters, the ratio of the model's radiance to the GGX radiance
+(median per group, over near-normal views, cos theta_o > 0.7, and grazing
+ones, cos theta_o < 0.4): where the model itself departs from GGX.
 
     python bench/lobe_bench.py                       # studio and sunny from results/envs
     FREQBRDF_RESULTS=/path/to/results python bench/lobe_bench.py --envs studio sunny museum
 
-Writes ``bench/out/lobe.tsv``.
+Writes ``bench/out/lobe.tsv`` and ``bench/out/lobe_ratio.tsv``.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ from freqbrdf import optimise as op  # noqa: E402
 from freqbrdf import sh  # noqa: E402
 from freqbrdf.brdf import R0_DIELECTRIC  # noqa: E402
 from freqbrdf.io import read_exr  # noqa: E402
-from freqbrdf.lobes import LOBES  # noqa: E402
+from freqbrdf.lobes import LOBES, lobe_table  # noqa: E402
 
 
 def ggx_radiance(env: np.ndarray, capture: dict, truth: dict) -> np.ndarray:
@@ -69,16 +72,42 @@ def ggx_radiance(env: np.ndarray, capture: dict, truth: dict) -> np.ndarray:
     return radiance
 
 
+def model_ratios(env: np.ndarray, capture: dict, truth: dict, lobe: str) -> list[dict]:
+    """Median of model / GGX radiance (channel sums) at the true parameters, per roughness and
+    metallic, over near-normal (cos theta_o > 0.7) and grazing (< 0.4) observations."""
+    problem = op.build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
+    light = op.light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 20))
+    model = op.forward(op.pack_params(truth, problem.n_texels), problem, light, True, lobe_table(lobe, 20))
+    seen, cos_o = capture["weight"] > 0, capture["wo_local"][..., 2]
+    ratio = model.sum(-1) / np.maximum(capture["radiance"].sum(-1), 1e-12)
+    rows = []
+    for r in ROUGHNESS:
+        for metallic in (0.0, 1.0):
+            sel = ((truth["roughness"] == r) & (truth["metallic"] == metallic))[:, None] & seen
+            rows.append({"lobe": lobe, "roughness": r, "metallic": metallic,
+                         "ratio_normal": round(float(np.median(ratio[sel & (cos_o > 0.7)])), 2),
+                         "ratio_grazing": round(float(np.median(ratio[sel & (cos_o < 0.4)])), 2)})
+    return rows
+
+
+def write_tsv(rows: list[dict], path: Path) -> None:
+    columns = list(rows[0])
+    path.write_text("\n".join(["\t".join(columns)] + ["\t".join(str(r[c]) for c in columns) for r in rows]) + "\n")
+    print(f"written {path}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--envs", nargs="+", default=["studio", "sunny"], help="maps under results/envs")
     args = parser.parse_args()
-    rows = []
+    rows, ratios = [], []
     for name in args.envs:
         env = lt.downsample_equirect(read_exr(RESULTS / "envs" / f"{name}.exr"), 128)
         capture, truth = oracle_capture(env, seed=0)
         capture["radiance"] = ggx_radiance(env, capture, truth)
         for lobe in LOBES:
+            ratios += [{"env": name} | row for row in model_ratios(env, capture, truth, lobe)]
+            print(ratios[-1], flush=True)
             est, _ = op.optimise(observations(capture), lt.irradiance(env, capture["frame"][:, 2]),
                                  lt.light_quadrature(env, 20), None, "freq",
                                  op.OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0, lobe=lobe))
@@ -91,10 +120,8 @@ def main() -> None:
                     rows.append(row)
                     print(row, flush=True)
     OUT.mkdir(parents=True, exist_ok=True)
-    columns = list(rows[0])
-    (OUT / "lobe.tsv").write_text("\n".join(["\t".join(columns)] + ["\t".join(str(r[c]) for c in columns)
-                                                                    for r in rows]) + "\n")
-    print(f"written {OUT / 'lobe.tsv'}")
+    write_tsv(rows, OUT / "lobe.tsv")
+    write_tsv(ratios, OUT / "lobe_ratio.tsv")
 
 
 if __name__ == "__main__":
