@@ -57,6 +57,7 @@ TIMING_CAPTURE = "sphere/studio"
 TIMING_CASES = {
     # name: (method, workers, OptimiseSettings overrides)
     "freq_w2": ("freq", 2, {}),
+    "freq_ggx_w2": ("freq", 2, {"lobe": "ggx"}),
     "freq_lm_w2": ("freq", 2, {"solver": "lm"}),
     "rh2001_w2": ("rh2001", 2, {}),
     "freq_w1": ("freq", 1, {}),
