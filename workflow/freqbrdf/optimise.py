@@ -283,8 +283,7 @@ def identifiable_roughness(lmax: int, tail: float = 0.05, lobe: str = "gaussian"
     under the sun: roughness 0.3 recovered within 0.04, 0.25 off by up to 0.13).
     GGX's spectrum (`freqbrdf.lobes.ggx_lobe_spectrum`) keeps more of the high
     degrees; its share above l* is summed numerically (to degree 16 (l* + 1))
-    and the smallest alpha of a 1e-3 grid where it is below ``tail`` taken:
-    0.356 at l* = 20.
+    and the alpha where it falls below ``tail`` bisected (to 1e-4): 0.356 at l* = 20.
 
     Parameters
     ----------
@@ -307,12 +306,19 @@ def identifiable_roughness(lmax: int, tail: float = 0.05, lobe: str = "gaussian"
         raise ValueError(f"lobe must be one of {LOBES}, got {lobe!r}")
     if lobe == "gaussian":
         return float(np.sqrt(min(np.sqrt(np.log(1.0 / tail)) / (lmax + 1), 1.0)))
-    alpha = np.arange(1, 1001) * 1e-3
     degrees = np.arange(16 * (lmax + 1) + 1)
-    weight = (2 * degrees + 1) * ggx_lobe_spectrum(alpha, degrees[-1])[0]
-    share = weight[:, lmax + 1 :].sum(axis=1) / weight.sum(axis=1)
-    below = np.nonzero(share < tail)[0]
-    return float(np.sqrt(alpha[below[0]] if below.size else 1.0))
+
+    def share_above(alpha: float) -> float:
+        weight = (2 * degrees + 1) * ggx_lobe_spectrum(np.array([alpha]), degrees[-1])[0][0]
+        return float(weight[lmax + 1 :].sum() / weight.sum())
+
+    if share_above(1.0) >= tail:
+        return 1.0
+    lo, hi = ALPHA_MIN, 1.0  # the share falls as the lobe widens: bisect for where it crosses ``tail``
+    while hi - lo > 1e-4:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if share_above(mid) >= tail else (lo, mid)
+    return float(np.sqrt(hi))
 
 
 def atlas_neighbours(texel: np.ndarray, resolution: int) -> np.ndarray:
