@@ -1,18 +1,19 @@
-"""How each lobe (``optimise.lobe``) recovers materials rendered with a true GGX microfacet BRDF.
+"""How each model (``optimise.lobe``, ``view_weight``, ``diffuse``) recovers materials rendered with the
+principled BSDF's lobes.
 
 The texels, frames, views and occlusions of the recovery test of issue 12
 (`tests/test_light.py`, 64 texels: roughness 0.35, 0.5, 0.7, 0.9, metallic 0
-or 1) are rendered here not with the paper's model but with the microfacet
-BRDF of Mitsuba's principled BSDF without its extras: GGX distribution,
-separable Smith masking-shadowing, Schlick's Fresnel at the half vector
-(R0 = 0.04 (1 - m) + m base) and a Lambertian diffuse lobe, integrated per
-observation over every pixel of the environment map (128 x 256) above the
-texel's horizon. `freq` then fits them back (300 Adam steps at lr 0.01, no
-TV, the grid start, the light at degree 20) with each lobe, and the mean
-signed error of each (roughness, metallic) group is printed. Then, at the
-true parameters, the ratio of the model's radiance to the GGX radiance
-(median per group, over near-normal views, cos theta_o > 0.7, and grazing
-ones, cos theta_o < 0.4): where the model itself departs from GGX.
+or 1) are rendered here not with the paper's model but with the lobes of
+Mitsuba's principled BSDF without its extras (`oracles.ggx_radiance`: GGX,
+separable Smith masking-shadowing, Schlick's Fresnel at the half vector, the
+principled diffuse lobe), integrated per observation over every pixel of the
+environment map (128 x 256) above the texel's horizon. `freq` then fits them
+back (300 Adam steps at lr 0.01, no TV, the grid start, the light at degree
+20) with each model, and the mean signed error of each (roughness, metallic)
+group is printed. Then, at the true parameters, the ratio of the model's
+radiance to the oracle's (median per group, over near-normal views,
+cos theta_o > 0.7, and grazing ones, cos theta_o < 0.4): where the model
+itself departs from the renderer's BSDF.
 
     python bench/lobe_bench.py                       # studio and sunny from results/envs
     FREQBRDF_RESULTS=/path/to/results python bench/lobe_bench.py --envs studio sunny museum
@@ -32,59 +33,35 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = Path(os.environ.get("FREQBRDF_RESULTS", REPO / "results"))
 OUT = REPO / "bench" / "out"
-sys.path.insert(0, str(REPO / "tests"))  # the recovery test's texels and views, and its GGX G1 oracle
+sys.path.insert(0, str(REPO / "tests"))  # the recovery test's texels and views, and the GGX oracle
 
 import oracles  # noqa: E402
 from test_light import ROUGHNESS, observations, oracle_capture  # noqa: E402
 
 from freqbrdf import light as lt  # noqa: E402
 from freqbrdf import optimise as op  # noqa: E402
-from freqbrdf import sh  # noqa: E402
-from freqbrdf.brdf import R0_DIELECTRIC  # noqa: E402
 from freqbrdf.io import read_exr  # noqa: E402
-from freqbrdf.lobes import LOBES, lobe_table  # noqa: E402
+from freqbrdf.lobes import lobe_table, view_table  # noqa: E402
+
+MODELS = (("gaussian", "paper", "lambert"), ("ggx", "paper", "lambert"), ("ggx", "paper", "principled"),
+          ("ggx", "albedo", "principled"))  # (lobe, view weight, diffuse)
 
 
-def ggx_radiance(env: np.ndarray, capture: dict, truth: dict) -> np.ndarray:
-    """Outgoing radiance (T, K, 3) of every observation of ``capture`` by brute-force quadrature
-    of the GGX microfacet BRDF over the map's pixels; 0 where the view is occluded."""
-    frame, wo, weight = capture["frame"], capture["wo_local"], capture["weight"]
-    h, w = env.shape[:2]
-    directions = sh.equirect_directions(h, w).reshape(-1, 3)
-    power = (env * sh.equirect_solid_angles(h, w)[:, None, None]).reshape(-1, 3)
-    radiance = np.zeros(wo.shape[:2] + (3,))
-    for t in range(frame.shape[0]):
-        wi = directions @ frame[t].T  # local directions: the frame's rows are tangent, bitangent, normal
-        above = wi[:, 2] > 0
-        wi, pw = wi[above], power[above]
-        alpha, m, base = truth["roughness"][t] ** 2, truth["metallic"][t], truth["base_color"][t]
-        r0 = R0_DIELECTRIC * (1 - m) + m * base
-        diffuse = (1 - m) * base[None, :] / np.pi * wi[:, 2:3]
-        for k in np.nonzero(weight[t] > 0)[0]:
-            o = wo[t, k]
-            half = wi + o
-            half /= np.linalg.norm(half, axis=1, keepdims=True)
-            d = alpha**2 / (np.pi * (half[:, 2] ** 2 * (alpha**2 - 1) + 1) ** 2)
-            g = oracles.smith_g1(wi[:, 2], alpha) * oracles.smith_g1(np.array([o[2]]), alpha)
-            fresnel = r0 + (1 - r0) * ((1 - np.clip(half @ o, 0, 1)) ** 5)[:, None]
-            specular = (d * g / (4 * o[2]))[:, None] * fresnel  # f cos theta_i: cos theta_i cancels
-            radiance[t, k] = ((specular + diffuse) * pw).sum(axis=0)
-    return radiance
-
-
-def model_ratios(env: np.ndarray, capture: dict, truth: dict, lobe: str) -> list[dict]:
+def model_ratios(env: np.ndarray, capture: dict, truth: dict, lobe: str, view_weight: str,
+                 diffuse: str) -> list[dict]:
     """Median of model / GGX radiance (channel sums) at the true parameters, per roughness and
     metallic, over near-normal (cos theta_o > 0.7) and grazing (< 0.4) observations."""
     problem = op.build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
     light = op.light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 20))
-    model = op.forward(op.pack_params(truth, problem.n_texels), problem, light, True, lobe_table(lobe, 20))
+    model = op.forward(op.pack_params(truth, problem.n_texels), problem, light, True, lobe_table(lobe, 20),
+                       view_table(view_weight, diffuse, lobe, 20))
     seen, cos_o = capture["weight"] > 0, capture["wo_local"][..., 2]
     ratio = model.sum(-1) / np.maximum(capture["radiance"].sum(-1), 1e-12)
     rows = []
     for r in ROUGHNESS:
         for metallic in (0.0, 1.0):
             sel = ((truth["roughness"] == r) & (truth["metallic"] == metallic))[:, None] & seen
-            rows.append({"lobe": lobe, "roughness": r, "metallic": metallic,
+            rows.append({"lobe": lobe, "view_weight": view_weight, "diffuse": diffuse, "roughness": r, "metallic": metallic,
                          "ratio_normal": round(float(np.median(ratio[sel & (cos_o > 0.7)])), 2),
                          "ratio_grazing": round(float(np.median(ratio[sel & (cos_o < 0.4)])), 2)})
     return rows
@@ -104,17 +81,19 @@ def main() -> None:
     for name in args.envs:
         env = lt.downsample_equirect(read_exr(RESULTS / "envs" / f"{name}.exr"), 128)
         capture, truth = oracle_capture(env, seed=0)
-        capture["radiance"] = ggx_radiance(env, capture, truth)
-        for lobe in LOBES:
-            ratios += [{"env": name} | row for row in model_ratios(env, capture, truth, lobe)]
+        capture["radiance"] = oracles.ggx_radiance(env, capture, truth)
+        for lobe, view_weight, diffuse in MODELS:
+            ratios += [{"env": name} | row for row in model_ratios(env, capture, truth, lobe, view_weight, diffuse)]
             print(ratios[-1], flush=True)
             est, _ = op.optimise(observations(capture), lt.irradiance(env, capture["frame"][:, 2]),
                                  lt.light_quadrature(env, 20), None, "freq",
-                                 op.OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0, lobe=lobe))
+                                 op.OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0, lobe=lobe,
+                                                     view_weight=view_weight, diffuse=diffuse))
             for r in ROUGHNESS:
                 for metallic in (0.0, 1.0):
                     sel = (truth["roughness"] == r) & (truth["metallic"] == metallic)
-                    row = {"env": name, "lobe": lobe, "roughness": r, "metallic": metallic}
+                    row = {"env": name, "lobe": lobe, "view_weight": view_weight, "diffuse": diffuse, "roughness": r,
+                           "metallic": metallic}
                     for key in ("roughness", "metallic", "base_color"):
                         row[f"bias_{key}"] = round(float(np.mean(est[key][sel] - truth[key][sel])), 3)
                     rows.append(row)

@@ -58,6 +58,7 @@ TIMING_CASES = {
     # name: (method, workers, OptimiseSettings overrides)
     "freq_w2": ("freq", 2, {}),
     "freq_ggx_w2": ("freq", 2, {"lobe": "ggx"}),
+    "freq_ggx_principled_w2": ("freq", 2, {"lobe": "ggx", "diffuse": "principled"}),
     "freq_lm_w2": ("freq", 2, {"solver": "lm"}),
     "rh2001_w2": ("rh2001", 2, {}),
     "freq_w1": ("freq", 1, {}),
@@ -90,6 +91,13 @@ SWEEP = {
     "lr 0.02, tv 0.03, ggx lobe": {"lr": 0.02, "tv_weight": 0.03, "lobe": "ggx"},
     "lr 0.05, tv 0.03, ggx lobe, lmax 24": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx", "lmax": 24},
     "lr 0.05, tv 0.03, ggx lobe, lmax 28": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx", "lmax": 28},
+    "lr 0.05, tv 0.03, ggx lobe, principled": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx", "diffuse": "principled"},
+    "lr 0.05, tv 0.01, ggx lobe, principled": {"lr": 0.05, "tv_weight": 0.01, "lobe": "ggx", "diffuse": "principled"},
+    "lr 0.02, tv 0.03, ggx lobe, principled": {"lr": 0.02, "tv_weight": 0.03, "lobe": "ggx", "diffuse": "principled"},
+    "lr 0.05, tv 0.1, ggx lobe, principled": {"lr": 0.05, "tv_weight": 0.1, "lobe": "ggx", "diffuse": "principled"},
+    "lr 0.05, tv 0.03, ggx lobe, albedo": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx", "view_weight": "albedo"},
+    "lr 0.05, tv 0.03, ggx lobe, albedo, principled": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx",
+                                                       "view_weight": "albedo", "diffuse": "principled"},
 }
 
 

@@ -39,6 +39,8 @@ rule entropy_agreement:
         spectrum=config["spectrum"],
         lmax=config["optimise"]["lmax"],
         lobe=config["optimise"]["lobe"],
+        view_weight=config["optimise"]["view_weight"],
+        diffuse=config["optimise"]["diffuse"],
         max_depth=config["render"]["max_depth"],
         seed=lambda w: derived_seed(config["seed"], "entropy_agreement", w.object, w.env, w.poses),
     script:

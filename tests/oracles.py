@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from freqbrdf.brdf import R0_DIELECTRIC
-from freqbrdf.sh import real_sh, sh_degrees
+from freqbrdf.sh import equirect_directions, equirect_solid_angles, real_sh, sh_degrees
 from freqbrdf.validation import check_int, check_shape, lmax_of
 
 LOCAL_NORMAL = (0.0, 0.0, 1.0)
@@ -184,3 +184,39 @@ def smith_g1(cos_theta: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return 2.0 / (1.0 + np.sqrt(1.0 + a * a * (1.0 - c2) / c2))
 
 
+def ggx_radiance(env: np.ndarray, capture: dict, truth: dict) -> np.ndarray:
+    """Outgoing radiance (T, K, 3) of every observation by brute-force quadrature of a GGX microfacet
+    BRDF over the map's pixels above each texel's horizon; 0 where the view is occluded.
+
+    The BRDF is Mitsuba's principled BSDF without its extras: GGX distribution, separable Smith
+    masking-shadowing, Schlick's Fresnel at the half vector (``R0 = 0.04 (1 - m) + m base``) and
+    its diffuse lobe ``(1 - m) base / pi [(1 - F_i / 2)(1 - F_o / 2) + R (F_o + F_i + F_o F_i (R - 1))]``,
+    ``F = (1 - cos theta)^5``, ``R = 2 r (h.o)^2`` (Burley 2015). ``capture``: ``frame`` (T, 3, 3) rows tangent,
+    bitangent, normal; ``wo_local`` (T, K, 3); ``weight`` (T, K). ``truth``: ``base_color`` (T, 3),
+    ``roughness`` and ``metallic`` (T,); ``env`` (H, W, 3) an equirectangular map.
+    """
+    frame, wo, weight = capture["frame"], capture["wo_local"], capture["weight"]
+    h, w = env.shape[:2]
+    directions = equirect_directions(h, w).reshape(-1, 3)
+    power = (env * equirect_solid_angles(h, w)[:, None, None]).reshape(-1, 3)
+    radiance = np.zeros(wo.shape[:2] + (3,))
+    for t in range(frame.shape[0]):
+        wi = directions @ frame[t].T  # local directions: the frame's rows are tangent, bitangent, normal
+        above = wi[:, 2] > 0
+        wi, pw = wi[above], power[above]
+        alpha, m, base = truth["roughness"][t] ** 2, truth["metallic"][t], truth["base_color"][t]
+        r0 = R0_DIELECTRIC * (1 - m) + m * base
+        f_i = (1 - wi[:, 2]) ** 5
+        for k in np.nonzero(weight[t] > 0)[0]:
+            o = wo[t, k]
+            half = wi + o
+            half /= np.linalg.norm(half, axis=1, keepdims=True)
+            f_o, retro = (1 - o[2]) ** 5, 2 * truth["roughness"][t] * (half @ o) ** 2
+            shape = (1 - f_i / 2) * (1 - f_o / 2) + retro * (f_o + f_i + f_o * f_i * (retro - 1))
+            diffuse = (1 - m) * base[None, :] / np.pi * (shape * wi[:, 2])[:, None]
+            d = alpha**2 / (np.pi * (half[:, 2] ** 2 * (alpha**2 - 1) + 1) ** 2)
+            g = smith_g1(wi[:, 2], alpha) * smith_g1(np.array([o[2]]), alpha)
+            fresnel = r0 + (1 - r0) * ((1 - np.clip(half @ o, 0, 1)) ** 5)[:, None]
+            specular = (d * g / (4 * o[2]))[:, None] * fresnel  # f cos theta_i: cos theta_i cancels
+            radiance[t, k] = ((specular + diffuse) * pw).sum(axis=0)
+    return radiance

@@ -170,7 +170,8 @@ def likelihood_entropy(objective: np.ndarray, sigma: float, combine: str = "min"
 
 
 def angular_radiance(obs: Observations, irradiance: np.ndarray, light: LightQuadrature, grid: np.ndarray,
-                     workers: int = 1, lobe: np.ndarray | None = None) -> Iterator[np.ndarray]:
+                     workers: int = 1, lobe: np.ndarray | None = None,
+                     view: np.ndarray | None = None) -> Iterator[np.ndarray]:
     """Radiance of each uniform material of ``grid`` at the observed pairs, by the mixed
     forward model with shadowing and masking (paper section 4.3, Eqs. 14-18).
 
@@ -188,6 +189,9 @@ def angular_radiance(obs: Observations, irradiance: np.ndarray, light: LightQuad
         Threads.
     lobe : numpy.ndarray, optional
         The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`, config ``optimise.lobe``); default the paper's.
+    view : numpy.ndarray, optional
+        The specular weight per view (:func:`freqbrdf.lobes.view_table`, config
+        ``optimise.view_weight``); default the paper's.
 
     Yields
     ------
@@ -205,7 +209,7 @@ def angular_radiance(obs: Observations, irradiance: np.ndarray, light: LightQuad
             p = light_terms(np.full(problem.n_texels, roughness), problem, True, light, workers)
             fitted = roughness
         x[:, :3], x[:, 3], x[:, 4] = base, roughness, metallic
-        yield forward(x, problem, p, True, lobe)[pairs.texel, pairs.view]
+        yield forward(x, problem, p, True, lobe, view)[pairs.texel, pairs.view]
 
 
 def uniform_material_scene(mi: ModuleType, mesh: str, envmap: np.ndarray, max_depth: int):

@@ -169,6 +169,34 @@ def _table(lobe: np.ndarray | None, light: np.ndarray) -> np.ndarray:
     return lobe
 
 
+def _view(view: np.ndarray | None) -> np.ndarray:
+    """``view`` (`freqbrdf.lobes.view_table`) checked; None: the paper's ``F(theta_o) G1(theta_o)``."""
+    if view is None:
+        return np.empty((0, 2, 3, 0))
+    view = np.ascontiguousarray(view, np.float64)
+    if view.ndim != 4 or view.shape[1:3] != (2, 3) or (view.size and min(view.shape[0], view.shape[3]) < 2):
+        raise ValueError(f"view must be a view_table, got shape {view.shape}")
+    return view
+
+
+@numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
+def _hermite(alpha, alpha_min, nodes):  # pragma: no cover - compiled
+    """Cubic Hermite interpolation in ``log alpha`` over ``nodes`` even nodes of ``[log alpha_min, 0]``:
+    the node i below alpha, and the weights of (value_i, slope_i, value_i+1, slope_i+1), slopes
+    in ``d / d log alpha``, for the value (w) and for ``d / d alpha`` (d)."""
+    u0 = np.log(alpha_min)
+    du = -u0 / (nodes - 1)
+    u = (np.log(min(max(alpha, alpha_min), 1.0)) - u0) / du
+    i = min(int(u), nodes - 2)
+    t = u - i
+    t2 = t * t
+    t3 = t2 * t
+    w = (2 * t3 - 3 * t2 + 1, (t3 - 2 * t2 + t) * du, 3 * t2 - 2 * t3, (t3 - t2) * du)
+    d = ((6 * t2 - 6 * t) / (du * alpha), (3 * t2 - 4 * t + 1) / alpha, (6 * t - 6 * t2) / (du * alpha),
+         (3 * t2 - 2 * t) / alpha)
+    return i, w, d
+
+
 @numba.njit(cache=True, inline="always")
 def _lobe(alpha, alpha_min, table, f, fd):  # pragma: no cover - compiled
     """``f[l]``, the lobe's zonal spectrum at ``alpha``, and ``fd[l] = df/dalpha``.
@@ -187,19 +215,11 @@ def _lobe(alpha, alpha_min, table, f, fd):  # pragma: no cover - compiled
             value *= step
             step *= q * q
         return
-    u0 = np.log(alpha_min)
-    du = -u0 / (table.shape[0] - 1)
-    u = (np.log(min(max(alpha, alpha_min), 1.0)) - u0) / du
-    i = min(int(u), table.shape[0] - 2)
-    t = u - i
-    t2 = t * t
-    t3 = t2 * t
-    h00, h10, h01, h11 = 2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, 3 * t2 - 2 * t3, t3 - t2
-    g00, g10, g01, g11 = 6 * t2 - 6 * t, 3 * t2 - 4 * t + 1, 6 * t - 6 * t2, 3 * t2 - 2 * t
+    i, w, d = _hermite(alpha, alpha_min, table.shape[0])
     for l in range(f.shape[0]):
-        a, ma, b, mb = table[i, 0, l], table[i, 1, l] * du, table[i + 1, 0, l], table[i + 1, 1, l] * du
-        f[l] = h00 * a + h10 * ma + h01 * b + h11 * mb
-        fd[l] = (g00 * a + g10 * ma + g01 * b + g11 * mb) / (du * alpha)
+        a, ma, b, mb = table[i, 0, l], table[i, 1, l], table[i + 1, 0, l], table[i + 1, 1, l]
+        f[l] = w[0] * a + w[1] * ma + w[2] * b + w[3] * mb
+        fd[l] = d[0] * a + d[1] * ma + d[2] * b + d[3] * mb
 
 
 @numba.njit(cache=True, inline="always")
@@ -212,37 +232,75 @@ def _masking(alpha, tan2, masking):  # pragma: no cover - compiled
     return g1, -g1 * g1 * alpha * tan2 / (2.0 * root)
 
 
-@numba.njit(cache=True, inline="always")
-def _schlick_fresnel(r0_dielectric, m, base, c5):  # pragma: no cover - compiled
-    """``F = R0 (1 - c5) + c5`` with ``R0 = r0_dielectric (1 - m) + m base`` and ``c5 = (1 - cos theta_o)^5``."""
-    return (r0_dielectric * (1.0 - m) + m * base) * (1.0 - c5) + c5
+@numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
+def _view_weights(view, i, w, d, mu):  # pragma: no cover - compiled
+    """``a, b, d`` of `freqbrdf.lobes.view_table` at the texel's alpha (Hermite node ``i``, weights
+    ``w``, ``d`` of `_hermite`) and ``mu = cos theta_o`` (linear), then their derivatives in alpha."""
+    x = mu * (view.shape[3] - 1)
+    j = min(int(x), view.shape[3] - 2)
+    tj = x - j
+    return (_table_point(view, 0, i, j, tj, w), _table_point(view, 1, i, j, tj, w), _table_point(view, 2, i, j, tj, w),
+            _table_point(view, 0, i, j, tj, d), _table_point(view, 1, i, j, tj, d), _table_point(view, 2, i, j, tj, d))
 
 
 @numba.njit(cache=True, inline="always")
-def _model(m, base, e_pi, fresnel, spec):  # pragma: no cover - compiled
-    """``B = (1 - m) base E / pi + F G1m Spec`` of one channel (``spec`` is ``G1m Spec``)."""
-    return (1.0 - m) * base * e_pi + fresnel * spec
+def _table_point(view, k, i, j, tj, w):  # pragma: no cover - compiled
+    """Component k of ``view`` with Hermite weights ``w`` at alpha node i, linear between columns j, j + 1."""
+    lo = w[0] * view[i, 0, k, j] + w[1] * view[i, 1, k, j] + w[2] * view[i + 1, 0, k, j] + w[3] * view[i + 1, 1, k, j]
+    hi = (w[0] * view[i, 0, k, j + 1] + w[1] * view[i, 1, k, j + 1] + w[2] * view[i + 1, 0, k, j + 1]
+          + w[3] * view[i + 1, 1, k, j + 1])
+    return (1.0 - tj) * lo + tj * hi
+
+
+@numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
+def _view_basis(alpha, alpha_min, view):  # pragma: no cover - compiled
+    """`_hermite` at alpha on the nodes of ``view`` (unused weights for the paper's empty table)."""
+    if view.shape[0] == 0:
+        zero = (0.0, 0.0, 0.0, 0.0)
+        return 0, zero, zero
+    return _hermite(alpha, alpha_min, view.shape[0])
 
 
 @numba.njit(cache=True, inline="always")
-def _pair_terms(alpha, f, fd, light, n, tan2, masking, work):  # pragma: no cover - compiled
-    """Per channel of pair n: ``work[0] = G1m Spec``, ``work[1] = d(G1m Spec)/dalpha``."""
-    g1, dg1 = _masking(alpha, tan2[n], masking)
-    s0 = s1 = s2 = d0 = d1 = d2 = 0.0
-    for l in range(f.shape[0]):
-        s0 += f[l] * light[n, l, 0]
-        s1 += f[l] * light[n, l, 1]
-        s2 += f[l] * light[n, l, 2]
-        d0 += fd[l] * light[n, l, 0]
-        d1 += fd[l] * light[n, l, 1]
-        d2 += fd[l] * light[n, l, 2]
-    work[0, 0], work[0, 1], work[0, 2] = g1 * s0, g1 * s1, g1 * s2
-    work[1, 0], work[1, 1], work[1, 2] = dg1 * s0 + g1 * d0, dg1 * s1 + g1 * d1, dg1 * s2 + g1 * d2
+def _model(m, base, e_pi, r0_dielectric, work, c):  # pragma: no cover - compiled
+    """``B = (1 - m) base d E / pi + R0 work[0] + work[1]`` of channel c (``d = work[4]``, `_pair_terms`),
+    ``R0 = r0_dielectric (1 - m) + m base``."""
+    return (1.0 - m) * base * e_pi * work[4, c] + (r0_dielectric * (1.0 - m) + m * base) * work[0, c] + work[1, c]
+
+
+@numba.njit(cache=True, inline="always")
+def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work):  # pragma: no cover - compiled
+    """Per channel of pair n, the specular term split as ``R0 work[0] + work[1]``, in ``work[2]``,
+    ``work[3]`` their derivatives in alpha, in ``work[4]`` and ``work[5]`` the diffuse factor d and
+    its derivative.
+
+    With an empty ``view``, the paper's ``F G1m Spec``: ``work[0] = (1 - c5) G1m Spec``,
+    ``work[1] = c5 G1m Spec``, ``d = 1``; otherwise ``a Spec``, ``b Spec`` and ``d``
+    (`freqbrdf.lobes.view_table`; ``vi``, ``vw``, ``vd`` from `_hermite` at alpha).
+    """
+    if view.shape[0] == 0:
+        g1, dg1 = _masking(alpha, tan2[n], masking)
+        c5 = schlick[n]
+        u, v, du, dv, dif, ddif = (1.0 - c5) * g1, c5 * g1, (1.0 - c5) * dg1, c5 * dg1, 1.0, 0.0
+    else:
+        u, v, dif, du, dv, ddif = _view_weights(view, vi, vw, vd, 1.0 / np.sqrt(1.0 + tan2[n]))
+    for c in range(3):
+        work[4, c] = dif
+        work[5, c] = ddif
+        s = 0.0
+        d = 0.0
+        for l in range(f.shape[0]):
+            s += f[l] * light[n, l, c]
+            d += fd[l] * light[n, l, c]
+        work[0, c] = u * s
+        work[1, c] = v * s
+        work[2, c] = du * s + u * d
+        work[3, c] = dv * s + v * d
 
 
 @numba.njit(parallel=True, cache=True, fastmath=True)
 def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe,
-                      grad, loss, model):  # pragma: no cover - compiled
+                      view, grad, loss, model):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
     write_model = model.shape[0] > 0
@@ -250,30 +308,30 @@ def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, a
     for blk in numba.prange((n_tex + _TEXELS - 1) // _TEXELS):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
-        work = np.empty((2, 3))  # per channel: G1m Spec and its derivative in alpha (`_pair_terms`)
-        signs = np.empty((2, 3))  # per channel: sum of signs, of signs times the specular rise
+        work = np.empty((6, 3))  # per channel: the model's view-dependent factors and their derivatives (`_pair_terms`)
+        signs = np.empty((2, 3))  # per channel: sum of signs times the diffuse factor, times the specular rise
         for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
             r = x[s, 3]
             m = x[s, 4]
             alpha = max(r * r, alpha_min)
             _lobe(alpha, alpha_min, lobe, f, fd)
+            vi, vw, vd = _view_basis(alpha, alpha_min, view)
             signs[:] = 0.0
             sum_d = 0.0
             total = 0.0
             for n in range(start[s], start[s + 1]):
-                c5 = schlick[n]
-                _pair_terms(alpha, f, fd, light, n, tan2, masking, work)
+                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work)
                 for c in range(3):
-                    fresnel = _schlick_fresnel(r0_dielectric, m, x[s, c], c5)
-                    value = _model(m, x[s, c], e_pi[s, c], fresnel, work[0, c])
+                    value = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c)
                     if write_model:
                         model[n, c] = value
                     res = value - radiance[n, c]
                     g = np.sign(res)
                     total += abs(res)
-                    signs[0, c] += g
-                    signs[1, c] += g * (1.0 - c5) * work[0, c]
-                    sum_d += g * fresnel * work[1, c]
+                    signs[0, c] += g * work[4, c]
+                    signs[1, c] += g * work[0, c]
+                    sum_d += g * ((r0_dielectric * (1.0 - m) + m * x[s, c]) * work[2, c] + work[3, c]
+                                  + (1.0 - m) * x[s, c] * e_pi[s, c] * work[5, c])
             grad[s, 4] = 0.0
             for c in range(3):
                 grad[s, c] = (1.0 - m) * e_pi[s, c] * signs[0, c] + m * signs[1, c]
@@ -285,13 +343,15 @@ def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, a
 def l1_loss_gradient(
     x: np.ndarray, start: np.ndarray, light: np.ndarray, radiance: np.ndarray, schlick: np.ndarray,
     tan2: np.ndarray, e_pi: np.ndarray, masking: bool, alpha_min: float, r0_dielectric: float,
-    model: np.ndarray | None = None, lobe: np.ndarray | None = None,
+    model: np.ndarray | None = None, lobe: np.ndarray | None = None, view: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-texel L1 data term of the mixed model and its gradient (paper Eqs. 11 and 13).
 
     For the pairs ``n`` of texel ``s`` (``start[s] <= n < start[s+1]``):
     ``B = (1 - m) base E / pi + F G1m sum_l f_l(alpha) light[n, l]``,
-    ``F = R0 (1 - c5) + c5``, ``R0 = r0_dielectric (1 - m) + m base``,
+    ``F = R0 (1 - c5) + c5``, ``R0 = r0_dielectric (1 - m) + m base``; with a
+    ``view`` table ``F G1m`` becomes ``R0 a + b`` and ``E / pi`` becomes ``d E / pi``, ``a``, ``b``
+    and ``d`` read at (alpha, cos theta_o),
     ``alpha = max(r^2, alpha_min)`` (derivative ``2 max(r, sqrt(alpha_min))``,
     as `freqbrdf.brdf.alpha_from_roughness`).
 
@@ -318,6 +378,9 @@ def l1_loss_gradient(
     lobe : numpy.ndarray, optional
         The lobe spectrum ``f_l`` (`freqbrdf.lobes.lobe_table`); default the paper's
         ``exp(-(alpha l)^2)``.
+    view : numpy.ndarray, optional
+        The specular weight per view (`freqbrdf.lobes.view_table`); default the paper's
+        ``F(theta_o) G1(theta_o)`` (``G1m = 1`` without ``masking``).
 
     Returns
     -------
@@ -329,20 +392,23 @@ def l1_loss_gradient(
     grad = np.empty((x.shape[0], 5))
     loss = np.empty(x.shape[0])
     _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
-                      _table(lobe, light), grad, loss, np.empty((0, 3)) if model is None else model)
+                      _table(lobe, light), _view(view), grad, loss, np.empty((0, 3)) if model is None else model)
     return loss, grad
 
 
 @numba.njit(parallel=True, cache=True)
-def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, r_grid, m_grid,
-                 max_pairs, out):  # pragma: no cover - compiled
+def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, r_grid,
+                 m_grid, max_pairs, out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
     for blk in numba.prange((n_tex + _TEXELS - 1) // _TEXELS):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
         base = np.empty(3)
-        spec = np.empty((max_pairs, 3))
+        work = np.empty((6, 3))
+        rise = np.empty((max_pairs, 3))  # the specular term's two parts (`_pair_terms`)
+        fixed = np.empty((max_pairs, 3))
+        diffuse = np.empty((max_pairs, 3))  # d E / pi
         slope = np.empty((max_pairs, 3))  # B = base slope + offset per pair and channel
         offset = np.empty((max_pairs, 3))
         for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
@@ -352,22 +418,21 @@ def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
             for r in r_grid:
                 alpha = max(r * r, alpha_min)
                 _lobe(alpha, alpha_min, lobe, f, fd)
+                vi, vw, vd = _view_basis(alpha, alpha_min, view)
                 for i in range(k):
-                    g1 = _masking(alpha, tan2[lo + i], masking)[0]
+                    _pair_terms(alpha, f, fd, light, lo + i, schlick, tan2, masking, view, vi, vw, vd, work)
                     for c in range(3):
-                        acc = 0.0
-                        for l in range(n_deg):
-                            acc += f[l] * light[lo + i, l, c]
-                        spec[i, c] = g1 * acc
+                        rise[i, c] = work[0, c]
+                        fixed[i, c] = work[1, c]
+                        diffuse[i, c] = e_pi[s, c] * work[4, c]
                 for m in m_grid:
                     # B = base a + b per channel: linear in the base colour once (r, m) are fixed
                     for c in range(3):
                         num = 0.0
                         den = 0.0
                         for i in range(k):
-                            rise = spec[i, c] * (1.0 - schlick[lo + i])
-                            slope[i, c] = (1.0 - m) * e_pi[s, c] + m * rise
-                            offset[i, c] = r0_dielectric * (1.0 - m) * rise + schlick[lo + i] * spec[i, c]
+                            slope[i, c] = (1.0 - m) * diffuse[i, c] + m * rise[i, c]
+                            offset[i, c] = r0_dielectric * (1.0 - m) * rise[i, c] + fixed[i, c]
                             num += slope[i, c] * (radiance[lo + i, c] - offset[i, c])
                             den += slope[i, c] * slope[i, c]
                         base[c] = min(1.0, max(0.0, num / max(den, 1e-12)))
@@ -387,7 +452,7 @@ def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
 def grid_search(
     start: np.ndarray, light: np.ndarray, radiance: np.ndarray, schlick: np.ndarray, tan2: np.ndarray,
     e_pi: np.ndarray, masking: bool, alpha_min: float, r0_dielectric: float, roughness: np.ndarray,
-    metallic: np.ndarray, lobe: np.ndarray | None = None,
+    metallic: np.ndarray, lobe: np.ndarray | None = None, view: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per texel, the (roughness, metallic) grid point of least L1 data term, with its best base colour.
 
@@ -402,7 +467,7 @@ def grid_search(
         As for `l1_loss_gradient`.
     roughness, metallic : numpy.ndarray
         1-D grids, float64.
-    lobe : numpy.ndarray, optional
+    lobe, view : numpy.ndarray, optional
         As for `l1_loss_gradient`.
 
     Returns
@@ -412,28 +477,27 @@ def grid_search(
     """
     out = np.zeros((start.shape[0] - 1, 5))
     _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, _table(lobe, light),
-                 np.asarray(roughness, dtype=np.float64), np.asarray(metallic, dtype=np.float64),
+                 _view(view), np.asarray(roughness, dtype=np.float64), np.asarray(metallic, dtype=np.float64),
                  int(np.diff(start).max(initial=0)), out)
     return out
 
 
 @numba.njit(cache=True, inline="always")
-def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe,
+def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
                 nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
     """Objective of texel s at parameters ``xs`` (5,): its L1 data term times ``data_scale`` plus
     ``tv_scale`` times the TV of its edges, the neighbours held at ``x`` (S, 5); ``f``, ``fd``
-    (L,) and ``work`` (2, 3) are scratch."""
+    (L,) and ``work`` (6, 3) are scratch."""
     cost = 0.0
     if s < start.shape[0] - 1:
         alpha = max(xs[3] * xs[3], alpha_min)
         _lobe(alpha, alpha_min, lobe, f, fd)
+        vi, vw, vd = _view_basis(alpha, alpha_min, view)
         m = xs[4]
         for n in range(start[s], start[s + 1]):
-            _pair_terms(alpha, f, fd, light, n, tan2, masking, work)
-            c5 = schlick[n]
+            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work)
             for c in range(3):
-                fresnel = _schlick_fresnel(r0_dielectric, m, xs[c], c5)
-                cost += abs(_model(m, xs[c], e_pi[s, c], fresnel, work[0, c]) - radiance[n, c])
+                cost += abs(_model(m, xs[c], e_pi[s, c], r0_dielectric, work, c) - radiance[n, c])
         cost *= data_scale
     for k in range(nb_start[s], nb_start[s + 1]):
         j = nb[k]
@@ -473,7 +537,7 @@ def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
-def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe,
+def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
                  nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h,
                  g):  # pragma: no cover - compiled
     """Texel s's objective at ``x[s]``, and in ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton
@@ -493,18 +557,17 @@ def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
         alpha = max(r * r, alpha_min)
         dalpha = 2.0 * max(r, np.sqrt(alpha_min))
         _lobe(alpha, alpha_min, lobe, f, fd)
+        vi, vw, vd = _view_basis(alpha, alpha_min, view)
         for p in range(lo, hi):
-            _pair_terms(alpha, f, fd, light, p, tan2, masking, work)
-            c5 = schlick[p]
+            _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work)
             for c in range(3):
-                spec = work[0, c]
-                fresnel = _schlick_fresnel(r0_dielectric, m, x[s, c], c5)
-                res = _model(m, x[s, c], e_pi[s, c], fresnel, spec) - radiance[p, c]
+                res = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c) - radiance[p, c]
                 cost += abs(res)
                 # Jacobian row of this residual: base_c, roughness, metallic (other bases 0)
-                j_base = (1.0 - m) * e_pi[s, c] + m * (1.0 - c5) * spec
-                j_r = fresnel * work[1, c] * dalpha
-                j_m = -x[s, c] * e_pi[s, c] + (x[s, c] - r0_dielectric) * (1.0 - c5) * spec
+                j_base = (1.0 - m) * e_pi[s, c] * work[4, c] + m * work[0, c]
+                j_r = ((r0_dielectric * (1.0 - m) + m * x[s, c]) * work[2, c] + work[3, c]
+                       + (1.0 - m) * x[s, c] * e_pi[s, c] * work[5, c]) * dalpha
+                j_m = -x[s, c] * e_pi[s, c] * work[4, c] + (x[s, c] - r0_dielectric) * work[0, c]
                 # the reweighted quadratic's own gradient: sign(res) above the floor, Huber below
                 w = data_scale / max(abs(res), floor)
                 g[c] += w * res * j_base
@@ -565,7 +628,7 @@ def _predicted_gain(h, g, step):  # pragma: no cover - compiled
 
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
-def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe,
+def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
               nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
               cost_out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
@@ -573,7 +636,7 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
     for blk in numba.prange((n + _TEXELS - 1) // _TEXELS):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
-        work = np.empty((2, 3))
+        work = np.empty((6, 3))
         h = np.empty((5, 5))
         a = np.empty((5, 5))
         g = np.empty(5)
@@ -583,7 +646,7 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
         for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
             s = texels[i]
             cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                r0_dielectric, lobe, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor,
+                                r0_dielectric, lobe, view, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor,
                                 f, fd, work, h, g)
             cost_out[i] = cost
             lam_s = lam[s]
@@ -598,7 +661,7 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                 for q in range(5):
                     trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
                 new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                  r0_dielectric, lobe, nb_start, nb, x, data_scale, tv_scale, f, fd, work)
+                                  r0_dielectric, lobe, view, nb_start, nb, x, data_scale, tv_scale, f, fd, work)
                 if new < cost:
                     x[s, :] = trial
                     lam_s = max(lam_s * _LM_DOWN, _LM_MIN)
@@ -612,7 +675,7 @@ def lm_sweep(
     schlick: np.ndarray, tan2: np.ndarray, e_pi: np.ndarray, masking: bool, alpha_min: float,
     r0_dielectric: float, nb_start: np.ndarray, nb: np.ndarray, data_scale: float, tv_scale: float,
     lower: np.ndarray, upper: np.ndarray, irls_floor: float, tv_floor: float, lam: np.ndarray, tries: int,
-    lobe: np.ndarray | None = None,
+    lobe: np.ndarray | None = None, view: np.ndarray | None = None,
 ) -> np.ndarray:
     """One damped Gauss-Newton (Levenberg-Marquardt) step per texel of ``texels`` on the L1 + TV objective.
 
@@ -657,7 +720,7 @@ def lm_sweep(
         Shape ``(S,)``: damping per texel, updated in place.
     tries : int
         Attempts per texel.
-    lobe : numpy.ndarray, optional
+    lobe, view : numpy.ndarray, optional
         As for `l1_loss_gradient`.
 
     Returns
@@ -667,6 +730,6 @@ def lm_sweep(
     """
     cost = np.empty(texels.shape[0])
     _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
-              _table(lobe, light), nb_start, nb, float(data_scale), float(tv_scale), lower, upper,
+              _table(lobe, light), _view(view), nb_start, nb, float(data_scale), float(tv_scale), lower, upper,
               float(irls_floor), float(tv_floor), lam, int(tries), cost)
     return cost

@@ -4,7 +4,7 @@ Per texel p the parameters are the base colour (RGB), roughness r and
 metallic m, all in [0, 1]; ``alpha = max(r^2, 1e-3)`` as in Mitsuba's
 ``principled`` BSDF. For every observation (p, w_o) the model predicts
 
-    B(p, w_o) = (1 - m) base E(p) / pi + F(theta_o) G1m(theta_o) Spec(p, w_r)
+    B(p, w_o) = (1 - m) base d E(p) / pi + F(theta_o) G1m(theta_o) Spec(p, w_r)
 
 - ``E(p)``: irradiance at the texel normal from the whole environment
   (an input, e.g. :func:`freqbrdf.light.irradiance`);
@@ -15,7 +15,10 @@ metallic m, all in [0, 1]; ``alpha = max(r^2, 1e-3)`` as in Mitsuba's
   specular lobe as an SH filter at the world mirror direction ``w_r``, where
   ``Lg`` is the shadowed light ``G1(theta_i) L`` over the texel's upper
   hemisphere, integrated from the known environment map per texel normal
-  and roughness (:func:`freqbrdf.light.shadowed_light`; paper section 4.2).
+  and roughness (:func:`freqbrdf.light.shadowed_light`; paper section 4.2);
+- ``d = 1`` (the paper's Lambertian term), or with ``diffuse="principled"`` the view
+  dependence of the principled BSDF's diffuse lobe; ``view_weight="albedo"`` replaces
+  ``F G1m`` by GGX's directional albedo (both: :func:`freqbrdf.lobes.view_table`).
 
 ``Lg`` depends on alpha, so it is refitted every ``refit_every`` iterations
 (for the texels whose roughness moved by more than ``refit_tolerance``)
@@ -90,7 +93,7 @@ from .artefacts import Observations
 from .brdf import ALPHA_MIN, R0_DIELECTRIC, TEXTURES, alpha_from_roughness, tan2_theta
 from .light import LightQuadrature, irradiance, light_quadrature, shadowed_light
 from .methods import get_method
-from .lobes import LOBES, ggx_lobe_spectrum, lobe_table
+from .lobes import DIFFUSE_LOBES, LOBES, VIEW_WEIGHTS, ggx_lobe_spectrum, lobe_table, view_table
 from .kernels import degree_sums, grid_search, l1_loss_gradient, lm_sweep, set_threads
 from .sh import recurrence_tables
 from .shfit import mirror_directions
@@ -147,6 +150,13 @@ class OptimiseSettings:
     lobe : {"gaussian", "ggx"}
         Zonal spectrum of the specular lobe (`freqbrdf.lobes.LOBES`): the
         paper's ``exp(-(alpha l)^2)`` or GGX's own (`freqbrdf.lobes.ggx_lobe_spectrum`).
+    view_weight : {"paper", "albedo"}
+        Weight of the filtered light per view (`freqbrdf.lobes.VIEW_WEIGHTS`): the paper's
+        ``F(theta_o) G1(theta_o)`` or GGX's directional albedo (`freqbrdf.lobes.view_table`),
+        for the methods with shadowing and masking; the others ablate the paper's terms and keep its weight.
+    diffuse : {"lambert", "principled"}
+        The diffuse term's view dependence (`freqbrdf.lobes.DIFFUSE_LOBES`): the paper's
+        Lambertian, or the principled BSDF's (`freqbrdf.lobes.principled_diffuse_albedo`).
     sweeps : int
         ``lm``: sweeps over both colours (one damped Gauss-Newton step per texel each).
     sweep_refit_every : int
@@ -195,6 +205,8 @@ class OptimiseSettings:
 
     solver: str = "adam"
     lobe: str = "gaussian"
+    view_weight: str = "paper"
+    diffuse: str = "lambert"
     sweeps: int = 12
     sweep_refit_every: int = 4
     sweep_tolerance: float = 1e-4
@@ -220,6 +232,10 @@ class OptimiseSettings:
             raise ValueError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
         if self.lobe not in LOBES:
             raise ValueError(f"lobe must be one of {LOBES}, got {self.lobe!r}")
+        if self.view_weight not in VIEW_WEIGHTS:
+            raise ValueError(f"view_weight must be one of {VIEW_WEIGHTS}, got {self.view_weight!r}")
+        if self.diffuse not in DIFFUSE_LOBES:
+            raise ValueError(f"diffuse must be one of {DIFFUSE_LOBES}, got {self.diffuse!r}")
         check_int(self.sweeps, "sweeps", 0)
         check_int(self.sweep_refit_every, "sweep_refit_every", 1)
         for name in ("sweep_tolerance", "irls_floor", "tv_floor", "damping"):
@@ -251,7 +267,8 @@ class OptimiseSettings:
         """Settings from config ``optimise`` (``min_roughness: auto`` is `identifiable_roughness`
         of ``lmax``; ``init: grid`` starts from the grid)."""
         bound = config["min_roughness"]
-        return cls(solver=config["solver"], lobe=config["lobe"], sweeps=config["sweeps"],
+        return cls(solver=config["solver"], lobe=config["lobe"], view_weight=config["view_weight"],
+                   diffuse=config["diffuse"], sweeps=config["sweeps"],
                    sweep_refit_every=config["sweep_refit_every"],
                    iterations=config["iterations"], lr=config["lr"], refit_every=config["refit_every"],
                    tv_weight=config["tv_weight"], workers=workers, grid_start=config["init"] == "grid",
@@ -753,20 +770,20 @@ def total_variation(x: np.ndarray, neighbours: np.ndarray) -> tuple[float, np.nd
 
 
 def _l1(xp: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, model: np.ndarray | None = None,
-        lobe: np.ndarray | None = None):
+        lobe: np.ndarray | None = None, view: np.ndarray | None = None):
     """Per-texel L1 data term and gradient of the observed texels (`freqbrdf.kernels.l1_loss_gradient`)."""
     return l1_loss_gradient(
         np.ascontiguousarray(xp[: problem.n_observed]), problem.start, light, problem.radiance, problem.schlick,
-        problem.tan2, problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, model, lobe,
+        problem.tan2, problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, model, lobe, view,
     )
 
 
 def _loss_and_gradient(
     xp: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float,
-    lobe: np.ndarray | None = None,
+    lobe: np.ndarray | None = None, view: np.ndarray | None = None,
 ) -> tuple[float, np.ndarray]:
     """`loss_and_gradient` of internal-order ``xp`` (texel-order sums, so independent of threads)."""
-    loss_per_texel, grad_obs = _l1(xp, problem, light, masking, lobe=lobe)
+    loss_per_texel, grad_obs = _l1(xp, problem, light, masking, lobe=lobe, view=view)
     scale = 1.0 / (3.0 * problem.n_pairs)  # mean over pairs and channels
     grad = np.zeros_like(xp)
     grad[: problem.n_observed] = grad_obs * scale
@@ -779,7 +796,7 @@ def _loss_and_gradient(
 
 
 def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool,
-            lobe: np.ndarray | None = None) -> np.ndarray:
+            lobe: np.ndarray | None = None, view: np.ndarray | None = None) -> np.ndarray:
     """Model radiance of every observation.
 
     Parameters
@@ -794,6 +811,9 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool,
         Apply ``G1(theta_o)`` to the specular term.
     lobe : numpy.ndarray, optional
         The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`); default the paper's Gaussian.
+    view : numpy.ndarray, optional
+        The specular weight per view (:func:`freqbrdf.lobes.view_table`); default the paper's
+        ``F(theta_o) G1(theta_o)``.
 
     Returns
     -------
@@ -803,7 +823,7 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool,
     x = _check_x(x, problem)
     p = _check_light(light, problem)
     model = np.empty((problem.n_pairs, 3))
-    _l1(x[problem.perm], problem, p, masking, model, lobe)
+    _l1(x[problem.perm], problem, p, masking, model, lobe, view)
     out = np.zeros((problem.n_texels, problem.n_views, 3))
     out[problem.pair_texel, problem.pair_view] = model
     return out
@@ -811,7 +831,7 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool,
 
 def loss_and_gradient(
     x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float = 1e-3, workers: int = 1,
-    lobe: np.ndarray | None = None,
+    lobe: np.ndarray | None = None, view: np.ndarray | None = None,
 ) -> tuple[float, np.ndarray]:
     """Objective of paper Eq. 13 plus total variation (section 4.3) and its analytic gradient, light terms held fixed.
 
@@ -845,6 +865,9 @@ def loss_and_gradient(
         Threads.
     lobe : numpy.ndarray, optional
         The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`); default the paper's Gaussian.
+    view : numpy.ndarray, optional
+        The specular weight per view (:func:`freqbrdf.lobes.view_table`); default the paper's
+        ``F(theta_o) G1(theta_o)``.
 
     Returns
     -------
@@ -858,7 +881,7 @@ def loss_and_gradient(
     if not (np.isfinite(tv_weight) and tv_weight >= 0):
         raise ValueError(f"tv_weight must be a finite number >= 0, got {tv_weight!r}")
     set_threads(check_int(workers, "workers", 1))
-    loss, grad_p = _loss_and_gradient(x[problem.perm], problem, p, masking, tv_weight, lobe)
+    loss, grad_p = _loss_and_gradient(x[problem.perm], problem, p, masking, tv_weight, lobe, view)
     grad = np.empty_like(grad_p)
     grad[problem.perm] = grad_p
     return loss, grad
@@ -866,7 +889,7 @@ def loss_and_gradient(
 
 def grid_start(
     problem: Problem, light: np.ndarray, masking: bool, roughness: np.ndarray, metallic: np.ndarray,
-    workers: int = 1, lobe: np.ndarray | None = None,
+    workers: int = 1, lobe: np.ndarray | None = None, view: np.ndarray | None = None,
 ) -> np.ndarray:
     """Per-texel start of the optimiser: the best of a (roughness x metallic) grid.
 
@@ -893,6 +916,9 @@ def grid_start(
         Threads.
     lobe : numpy.ndarray, optional
         The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`); default the paper's Gaussian.
+    view : numpy.ndarray, optional
+        The specular weight per view (:func:`freqbrdf.lobes.view_table`); default the paper's
+        ``F(theta_o) G1(theta_o)``.
 
     Returns
     -------
@@ -904,7 +930,7 @@ def grid_start(
     xp = np.full((problem.n_texels, _N_PARAMS), 0.5)
     xp[: problem.n_observed] = grid_search(
         problem.start, p, problem.radiance, problem.schlick, problem.tan2, problem.irradiance_pi, masking,
-        ALPHA_MIN, R0_DIELECTRIC, roughness, metallic, lobe,
+        ALPHA_MIN, R0_DIELECTRIC, roughness, metallic, lobe, view,
     )
     x = np.empty_like(xp)
     x[problem.perm] = xp
@@ -996,9 +1022,11 @@ def optimise(
         raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
     problem = build_problem(obs, irradiance, settings.dtype)
     lobe = lobe_table(settings.lobe, light.lmax)
-    xp = _start(problem, light, init, shadowing, masking, lobe, settings)[problem.perm]  # internal order (see Problem)
+    view = view_table(settings.view_weight if shadowing and masking else "paper", settings.diffuse, settings.lobe,
+                      light.lmax, masking)
+    xp = _start(problem, light, init, shadowing, masking, lobe, view, settings)[problem.perm]  # internal order
     descend = _descend_lm if settings.solver == "lm" else _descend
-    xp, curve = descend(xp, problem, light, shadowing, masking, lobe, settings)
+    xp, curve = descend(xp, problem, light, shadowing, masking, lobe, view, settings)
     x = np.empty_like(xp)
     x[problem.perm] = xp
     return unpack_params(x), curve
@@ -1006,7 +1034,7 @@ def optimise(
 
 def _start(
     problem: Problem, light: LightQuadrature, init: Mapping[str, np.ndarray] | None, shadowing: bool, masking: bool,
-    lobe: np.ndarray, settings: OptimiseSettings,
+    lobe: np.ndarray, view: np.ndarray, settings: OptimiseSettings,
 ) -> np.ndarray:
     """Packed start parameters (T, 5): ``init``, else the grid start or 0.5 everywhere."""
     if init is not None:
@@ -1017,7 +1045,7 @@ def _start(
         return grid_start(
             problem, light_terms(np.full(problem.n_texels, 0.5), problem, shadowing, light, settings.workers),
             masking, np.linspace(0.0, 1.0, settings.grid_roughness), np.linspace(0.0, 1.0, settings.grid_metallic),
-            settings.workers, lobe,
+            settings.workers, lobe, view,
         )
     return np.full((problem.n_texels, _N_PARAMS), 0.5)
 
@@ -1050,7 +1078,7 @@ class _ShadowedLight:
 
 def _descend_lm(
     xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool, lobe: np.ndarray,
-    settings: OptimiseSettings,
+    view: np.ndarray, settings: OptimiseSettings,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Levenberg-Marquardt sweeps from ``xp`` (internal order; `freqbrdf.kernels.lm_sweep`), refitting
     the shadowed light every ``sweep_refit_every`` sweeps; returns the parameters and the objective
@@ -1075,7 +1103,7 @@ def _descend_lm(
     for sweep in range(settings.sweeps):
         if sweep and sweep % settings.sweep_refit_every == 0 and lg.refit(xp):
             last_refit = sweep
-        loss = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight, lobe)[0]
+        loss = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight, lobe, view)[0]
         if sweep > last_refit and curve[-1] - loss < settings.sweep_tolerance * curve[-1]:
             break
         curve.append(loss)
@@ -1083,13 +1111,13 @@ def _descend_lm(
             lm_sweep(xp, texels, problem.start, lg.terms, problem.radiance, problem.schlick, problem.tan2,
                      problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, problem.nb_start, problem.nb,
                      1.0 / (3.0 * problem.n_pairs), settings.tv_weight / n_edges, lower, upper,
-                     settings.irls_floor, settings.tv_floor, lam, _LM_TRIES, lobe)
+                     settings.irls_floor, settings.tv_floor, lam, _LM_TRIES, lobe, view)
     return xp, np.asarray(curve)
 
 
 def _descend(
     xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool, lobe: np.ndarray,
-    settings: OptimiseSettings,
+    view: np.ndarray, settings: OptimiseSettings,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Adam from ``xp`` (internal order), refitting the shadowed light every ``refit_every`` steps;
     returns the parameters and the loss at the start of each iteration."""
@@ -1105,7 +1133,7 @@ def _descend(
     for it in range(settings.iterations):
         if it and it % settings.refit_every == 0:
             lg.refit(xp)
-        curve[it], grad = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight, lobe)
+        curve[it], grad = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight, lobe, view)
         xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
         xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     return xp, curve

@@ -14,7 +14,7 @@ from freqbrdf.io import atomic_path, read_exr, write_json
 from freqbrdf.logs import run_script
 from freqbrdf.metrics import pearson
 from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.lobes import lobe_table
+from freqbrdf.lobes import lobe_table, view_table
 from freqbrdf.optimise import estimate_light
 from freqbrdf.spectrum import search_fit
 
@@ -37,7 +37,8 @@ def main(smk, log):
     search, t_spectrum = timed(lambda: search_fit(sample_fit, np.ones(len(index), bool), p.spectrum))
     light, irradiance = estimate_light(envmap, sample, "freq", p.lmax)
     d_angular, t_angular = timed(lambda: grid_objective(
-        angular_radiance(sample, irradiance, light, grid, smk.threads, lobe_table(p.lobe, p.lmax)), pairs))
+        angular_radiance(sample, irradiance, light, grid, smk.threads, lobe_table(p.lobe, p.lmax),
+                         view_table(p.view_weight, p.diffuse, p.lobe, p.lmax)), pairs))
     log.info("spectrum entropy in %.4f s, angular grid in %.1f s", t_spectrum, t_angular)
 
     scene = uniform_material_scene(mi, smk.input.mesh, envmap, p.max_depth)
