@@ -76,6 +76,16 @@ def test_transitive_imports_are_followed() -> None:
     assert {"observations", "light", "optimise"} <= set(script_modules(REPO / "workflow/scripts/optimise_svbrdf.py", PACKAGE))
 
 
+def test_the_model_kernels_rerun_only_the_rules_that_fit_the_model() -> None:
+    """The model's compiled kernels (`freqbrdf.kernels`, `freqbrdf.lobes`) are not reached from the
+    scripts that build, render and extract observations, so changing the model does not rerun the
+    renders (numba's thread setter lives apart, in `freqbrdf.threads`, for that)."""
+    for script in ("make_object", "render_capture", "extract_observations", "fit_sh"):
+        modules = set(script_modules(REPO / f"workflow/scripts/{script}.py", PACKAGE))
+        assert not modules & {"kernels", "lobes", "optimise"}, (script, sorted(modules & {"kernels", "lobes"}))
+    assert {"kernels", "lobes"} <= set(script_modules(REPO / "workflow/scripts/optimise_svbrdf.py", PACKAGE))
+
+
 def test_a_missing_module_is_named(tmp_path: Path) -> None:
     script = tmp_path / "rule.py"
     script.write_text("from freqbrdf.nonexistent import thing\n")

@@ -19,6 +19,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .threads import set_threads
+
 __all__ = ["set_threads", "degree_sums", "shadowing_factors", "l1_loss_gradient", "grid_search", "lm_sweep"]
 
 _INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
@@ -29,11 +31,6 @@ _TEXELS = 64  # texels per parallel iteration (one set of scratch arrays each)
 _LM_DOWN, _LM_UP, _LM_MIN, _LM_MAX = 1.0 / 3.0, 4.0, 1e-6, 1e6
 # fast-math without "no NaNs": the Cholesky's positive-pivot test must still see a NaN
 _FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
-
-
-def set_threads(workers: int) -> None:
-    """Use ``workers`` threads (at most numba's configured maximum) in the kernels."""
-    numba.set_num_threads(max(1, min(int(workers), numba.config.NUMBA_NUM_THREADS)))
 
 
 @numba.njit(cache=True, inline="always")

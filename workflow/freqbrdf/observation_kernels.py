@@ -35,7 +35,7 @@ import math
 import numba
 import numpy as np
 
-from .kernels import set_threads  # one thread setting for every compiled kernel
+from .threads import set_threads  # one thread setting for every compiled kernel
 
 __all__ = ["set_threads", "view_geometry", "pair_observations", "edge_free_distances", "nearest_faces"]
 

@@ -43,7 +43,7 @@ import pandas as pd
 
 from .artefacts import Observations
 from .cameras import Cameras
-from .kernels import set_threads  # numba's thread count is per process: one setter for every kernel
+from .threads import set_threads  # numba's thread count is per process: one setter for every kernel
 from .observations import view_geometry
 from .sh import n_coeffs, real_sh, sh_degrees
 from .shfit import mirror_directions, regulariser_diagonal
