@@ -190,8 +190,8 @@ def angular_radiance(obs: Observations, irradiance: np.ndarray, light: LightQuad
     lobe : numpy.ndarray, optional
         The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`, config ``optimise.lobe``); default the paper's.
     view : numpy.ndarray, optional
-        The specular weight per view (:func:`freqbrdf.lobes.view_table`, config
-        ``optimise.view_weight``); default the paper's.
+        The weights per view (:func:`freqbrdf.lobes.view_table`, config
+        ``optimise.view_weight`` and ``diffuse``); default the paper's.
 
     Yields
     ------

@@ -376,8 +376,8 @@ def l1_loss_gradient(
         The lobe spectrum ``f_l`` (`freqbrdf.lobes.lobe_table`); default the paper's
         ``exp(-(alpha l)^2)``.
     view : numpy.ndarray, optional
-        The specular weight per view (`freqbrdf.lobes.view_table`); default the paper's
-        ``F(theta_o) G1(theta_o)`` (``G1m = 1`` without ``masking``).
+        The weights per view, specular and diffuse (`freqbrdf.lobes.view_table`); default the paper's
+        ``F(theta_o) G1(theta_o)`` (``G1m = 1`` without ``masking``) and Lambertian diffuse term.
 
     Returns
     -------

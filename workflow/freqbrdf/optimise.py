@@ -812,8 +812,8 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool,
     lobe : numpy.ndarray, optional
         The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`); default the paper's Gaussian.
     view : numpy.ndarray, optional
-        The specular weight per view (:func:`freqbrdf.lobes.view_table`); default the paper's
-        ``F(theta_o) G1(theta_o)``.
+        The weights per view, specular and diffuse (:func:`freqbrdf.lobes.view_table`); default the paper's
+        ``F(theta_o) G1(theta_o)`` and Lambertian diffuse term.
 
     Returns
     -------
@@ -866,8 +866,8 @@ def loss_and_gradient(
     lobe : numpy.ndarray, optional
         The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`); default the paper's Gaussian.
     view : numpy.ndarray, optional
-        The specular weight per view (:func:`freqbrdf.lobes.view_table`); default the paper's
-        ``F(theta_o) G1(theta_o)``.
+        The weights per view, specular and diffuse (:func:`freqbrdf.lobes.view_table`); default the paper's
+        ``F(theta_o) G1(theta_o)`` and Lambertian diffuse term.
 
     Returns
     -------
@@ -917,8 +917,8 @@ def grid_start(
     lobe : numpy.ndarray, optional
         The lobe spectrum (:func:`freqbrdf.lobes.lobe_table`); default the paper's Gaussian.
     view : numpy.ndarray, optional
-        The specular weight per view (:func:`freqbrdf.lobes.view_table`); default the paper's
-        ``F(theta_o) G1(theta_o)``.
+        The weights per view, specular and diffuse (:func:`freqbrdf.lobes.view_table`); default the paper's
+        ``F(theta_o) G1(theta_o)`` and Lambertian diffuse term.
 
     Returns
     -------
