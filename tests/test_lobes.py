@@ -142,6 +142,7 @@ def test_kernels_interpolate_the_view_table() -> None:
     tan2 = (1 - mu**2) / mu**2
     view = view_table("albedo", "principled", "gaussian", 20)
     assert view.shape == (VIEW_NODES[0], 2, 3, VIEW_NODES[1] + 1)
+    assert view_table("paper", "principled", "ggx", 20).shape == (VIEW_NODES[0], 2, 1, VIEW_NODES[1] + 1)
     assert view_table("paper", "lambert", "ggx", 20).size == 0  # the kernels' closed form
 
     def model(r: np.ndarray) -> np.ndarray:
@@ -214,10 +215,11 @@ def test_view_weight_names_are_checked() -> None:
 
 
 @pytest.mark.parametrize("masking", [True, False])
-def test_the_papers_weights_read_from_a_table_match_their_closed_form(masking: bool) -> None:
-    """With the principled diffuse term the paper's specular weight ``F G1m`` is read from the table
-    too: the model then equals the closed-form one (empty table) with ``E / pi`` scaled by
-    `principled_diffuse_albedo` at each texel's roughness and view, within the interpolation."""
+def test_the_principled_diffuse_term_scales_the_papers_model(masking: bool) -> None:
+    """With the principled diffuse term alone the table holds ``d`` only and the kernels keep the
+    paper's specular weight ``F G1m`` (with or without masking): the model equals the closed-form
+    one (empty table) with ``E / pi`` scaled by `principled_diffuse_albedo` at each texel's
+    roughness and view, within the interpolation."""
     env = ENVS["studio"]()
     env = lt.downsample_equirect(env, 64)
     capture, truth = oracle_capture(env, seed=2)
@@ -225,7 +227,7 @@ def test_the_papers_weights_read_from_a_table_match_their_closed_form(masking: b
     light = op.light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 12))
     x, lobe = op.pack_params(truth, problem.n_texels), lobe_table("ggx", 12)
     closed = op.forward(x, problem, light, masking, lobe)
-    tabled = op.forward(x, problem, light, masking, lobe, view_table("paper", "principled", "ggx", 12, masking))
+    tabled = op.forward(x, problem, light, masking, lobe, view_table("paper", "principled", "ggx", 12))
     diffuse = op.forward(x, problem, np.zeros_like(light), masking, lobe)  # no light: the diffuse term alone
     seen = capture["weight"] > 0
     factor = np.zeros(seen.shape)

@@ -116,8 +116,7 @@ def tables(model: tuple[str, str, str], method: str) -> tuple[np.ndarray, np.nda
     """The lobe and view tables `optimise` uses for ``method`` with ``model``."""
     lobe, weight, diffuse = model
     shadowing, masking, _ = variant(method)
-    return lobe_table(lobe, LMAX), view_table(weight if shadowing and masking else "paper", diffuse, lobe, LMAX,
-                                               masking)
+    return lobe_table(lobe, LMAX), view_table(weight if shadowing and masking else "paper", diffuse, lobe, LMAX)
 
 
 def render(scene: dict, params: dict, method: str, model: tuple[str, str, str] = MODELS[0]) -> np.ndarray:

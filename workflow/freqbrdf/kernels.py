@@ -171,7 +171,7 @@ def _view(view: np.ndarray | None) -> np.ndarray:
     if view is None:
         return np.empty((0, 2, 3, 0))
     view = np.ascontiguousarray(view, np.float64)
-    if view.ndim != 4 or view.shape[1:3] != (2, 3) or (view.size and min(view.shape[0], view.shape[3]) < 2):
+    if view.ndim != 4 or view.shape[1] != 2 or view.shape[2] not in (1, 3) or (view.size and min(view.shape[0], view.shape[3]) < 2):
         raise ValueError(f"view must be a view_table, got shape {view.shape}")
     return view
 
@@ -230,14 +230,21 @@ def _masking(alpha, tan2, masking):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
-def _view_weights(view, i, w, d, mu):  # pragma: no cover - compiled
-    """``a, b, d`` of `freqbrdf.lobes.view_table` at the texel's alpha (Hermite node ``i``, weights
-    ``w``, ``d`` of `_hermite`) and ``mu = cos theta_o`` (linear), then their derivatives in alpha."""
+def _view_weights(view, i, w, d, mu, masking, alpha, tan2, c5):  # pragma: no cover - compiled
+    """``a, b`` and the diffuse factor of `freqbrdf.lobes.view_table` at the texel's alpha (Hermite
+    node ``i``, weights ``w``, ``d`` of `_hermite`) and ``mu = cos theta_o`` (linear), then their
+    derivatives in alpha; a one-component table holds the diffuse factor only, ``a`` and ``b``
+    are then the paper's ``(1 - c5) G1m`` and ``c5 G1m``."""
     x = mu * (view.shape[3] - 1)
     j = min(int(x), view.shape[3] - 2)
     tj = x - j
-    return (_table_point(view, 0, i, j, tj, w), _table_point(view, 1, i, j, tj, w), _table_point(view, 2, i, j, tj, w),
-            _table_point(view, 0, i, j, tj, d), _table_point(view, 1, i, j, tj, d), _table_point(view, 2, i, j, tj, d))
+    k = view.shape[2] - 1  # the diffuse factor is the last component
+    dif, ddif = _table_point(view, k, i, j, tj, w), _table_point(view, k, i, j, tj, d)
+    if k == 0:
+        g1, dg1 = _masking(alpha, tan2, masking)
+        return (1.0 - c5) * g1, c5 * g1, dif, (1.0 - c5) * dg1, c5 * dg1, ddif
+    return (_table_point(view, 0, i, j, tj, w), _table_point(view, 1, i, j, tj, w), dif,
+            _table_point(view, 0, i, j, tj, d), _table_point(view, 1, i, j, tj, d), ddif)
 
 
 @numba.njit(cache=True, inline="always")
@@ -273,14 +280,16 @@ def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd
 
     With an empty ``view``, the paper's ``F G1m Spec``: ``work[0] = (1 - c5) G1m Spec``,
     ``work[1] = c5 G1m Spec``, ``d = 1``; otherwise ``a Spec``, ``b Spec`` and ``d``
-    (`freqbrdf.lobes.view_table`; ``vi``, ``vw``, ``vd`` from `_hermite` at alpha).
+    (`freqbrdf.lobes.view_table`; ``vi``, ``vw``, ``vd`` from `_hermite` at alpha), ``a`` and
+    ``b`` the paper's if the table holds ``d`` only.
     """
     if view.shape[0] == 0:
         g1, dg1 = _masking(alpha, tan2[n], masking)
         c5 = schlick[n]
         u, v, du, dv, dif, ddif = (1.0 - c5) * g1, c5 * g1, (1.0 - c5) * dg1, c5 * dg1, 1.0, 0.0
     else:
-        u, v, dif, du, dv, ddif = _view_weights(view, vi, vw, vd, 1.0 / np.sqrt(1.0 + tan2[n]))
+        u, v, dif, du, dv, ddif = _view_weights(view, vi, vw, vd, 1.0 / np.sqrt(1.0 + tan2[n]), masking, alpha,
+                                                tan2[n], schlick[n])
     for c in range(3):
         work[4, c] = dif
         work[5, c] = ddif

@@ -248,28 +248,19 @@ def uniform_response(alpha: np.ndarray, mu: np.ndarray, lobe: str, lmax: int, no
     return (f * c * degree) @ legendre(np.asarray(mu, dtype=np.float64), lmax).T
 
 
-def _paper_weights(alpha: np.ndarray, mu: np.ndarray, masking: bool) -> tuple[np.ndarray, np.ndarray]:
-    """The paper's ``F(theta_o) G1(theta_o)`` split as ``R0 a + b``: ``a = (1 - c5) G1``, ``b = c5 G1``,
-    ``c5 = (1 - cos theta_o)^5`` (``G1 = 1`` without masking); shapes ``(A, M)``."""
-    c5 = (1.0 - mu[None, :]) ** 5
-    g1 = _smith_g1(mu[None, :], alpha[:, None]) if masking else np.ones((alpha.size, 1))
-    return (1.0 - c5) * g1, c5 * g1
-
-
 @functools.cache
-def _view_table(view_weight: str, diffuse: str, lobe: str, lmax: int, masking: bool) -> np.ndarray:
+def _view_table(view_weight: str, diffuse: str, lobe: str, lmax: int) -> np.ndarray:
     n_alpha, n_mu = VIEW_NODES
     log_alpha = np.linspace(np.log(ALPHA_MIN), 0.0, n_alpha)
     alpha, mu = np.exp(log_alpha), np.linspace(0.0, 1.0, n_mu + 1)[1:]
+    factor = principled_diffuse_albedo(np.sqrt(alpha), mu) if diffuse == "principled" else np.ones((n_alpha, n_mu))
+    components = [factor]
     if view_weight == "albedo":
         rise, offset = ggx_specular_albedo(alpha, mu)
         response = uniform_response(alpha, mu, lobe, lmax)
-        rise, offset = rise / response, offset / response
-    else:
-        rise, offset = _paper_weights(alpha, mu, masking)
-    factor = principled_diffuse_albedo(np.sqrt(alpha), mu) if diffuse == "principled" else np.ones_like(rise)
-    table = np.empty((n_alpha, 2, 3, n_mu + 1))
-    for k, value in enumerate((rise, offset, factor)):
+        components = [rise / response, offset / response, factor]
+    table = np.empty((n_alpha, 2, len(components), n_mu + 1))
+    for k, value in enumerate(components):
         value = np.concatenate([value[:, :1], value], axis=1)  # mu = 0 holds mu = 1/64's: views there are cut
         table[:, 0, k] = value
         table[:, 1, k] = np.gradient(value, log_alpha, axis=0, edge_order=2)
@@ -277,14 +268,14 @@ def _view_table(view_weight: str, diffuse: str, lobe: str, lmax: int, masking: b
     return table
 
 
-def view_table(view_weight: str, diffuse: str, lobe: str, lmax: int, masking: bool = True) -> np.ndarray:
+def view_table(view_weight: str, diffuse: str, lobe: str, lmax: int) -> np.ndarray:
     """The model's weights per view, as the compiled model reads them (`freqbrdf.kernels`).
 
     The paper (section 4.2) writes ``B = (1 - m) base E / pi + F(theta_o) G1(theta_o) Spec``:
     a Lambertian diffuse term, and the filtered light at the mirror direction weighted by
     Schlick's ``F = R0 + (1 - R0)(1 - cos theta_o)^5`` and masking. Both are options here.
 
-    ``view_weight="paper"`` keeps that specular weight (``G1 = 1`` without ``masking``). It weights
+    ``view_weight="paper"`` keeps that specular weight (the kernels' masking flag applies). It weights
     every view by the lobe's value at the mirror direction, while an oblique GGX lobe gathers more
     light (the projected area of its microfacets grows as ``1 / G1(theta_o)``) and leans towards
     the normal, where the horizon cuts it: at grazing views the model under-predicts rough metals
@@ -309,16 +300,16 @@ def view_table(view_weight: str, diffuse: str, lobe: str, lmax: int, masking: bo
         The model's lobe (`LOBES`).
     lmax : int
         The model's degree l*.
-    masking : bool
-        The paper's weight with masking (``view_weight="albedo"`` always has it).
 
     Returns
     -------
     numpy.ndarray
         Shape ``(0, 2, 3, 0)`` for the paper's weights and diffuse, which the kernels
-        evaluate in closed form; otherwise ``(VIEW_NODES[0], 2, 3, VIEW_NODES[1] + 1)``:
-        ``[i, 0, k, j]`` the value and ``[i, 1, k, j]`` the derivative in ``log alpha`` of
-        ``a`` (k = 0), ``b`` (k = 1) and ``d`` (k = 2) at ``log alpha`` evenly spaced over
+        evaluate in closed form; ``(VIEW_NODES[0], 2, 1, VIEW_NODES[1] + 1)`` for the paper's
+        specular weight (closed form too) and the principled diffuse term ``d``; for the
+        albedo ``(VIEW_NODES[0], 2, 3, VIEW_NODES[1] + 1)``, ``a``, ``b`` and ``d``.
+        ``[i, 0, k, j]`` is the value and ``[i, 1, k, j]`` the derivative in ``log alpha`` of
+        component k at ``log alpha`` evenly spaced over
         ``[log ALPHA_MIN, 0]`` and ``cos theta_o = j / VIEW_NODES[1]``: cubic Hermite in
         ``log alpha``, linear in ``cos theta_o``. Read-only (cached).
     """
@@ -328,4 +319,4 @@ def view_table(view_weight: str, diffuse: str, lobe: str, lmax: int, masking: bo
             raise ValueError(f"{name} must be one of {allowed}, got {value!r}")
     if view_weight == "paper" and diffuse == "lambert":
         return np.empty((0, 2, 3, 0))
-    return _view_table(view_weight, diffuse, lobe, int(lmax), bool(masking))
+    return _view_table(view_weight, diffuse, lobe, int(lmax))

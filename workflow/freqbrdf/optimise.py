@@ -1023,7 +1023,7 @@ def optimise(
     problem = build_problem(obs, irradiance, settings.dtype)
     lobe = lobe_table(settings.lobe, light.lmax)
     view = view_table(settings.view_weight if shadowing and masking else "paper", settings.diffuse, settings.lobe,
-                      light.lmax, masking)
+                      light.lmax)
     xp = _start(problem, light, init, shadowing, masking, lobe, view, settings)[problem.perm]  # internal order
     descend = _descend_lm if settings.solver == "lm" else _descend
     xp, curve = descend(xp, problem, light, shadowing, masking, lobe, view, settings)
