@@ -236,3 +236,12 @@ def test_the_principled_diffuse_term_scales_the_papers_model(masking: bool) -> N
     expected = closed + diffuse * (factor[..., None] - 1.0)
     np.testing.assert_allclose(tabled, expected, rtol=5e-3, atol=1e-5 * np.abs(expected).max())
     assert np.abs(tabled - closed).max() > 0.02 * np.abs(closed).max()  # the factor matters
+
+
+def test_albedo_inputs_are_checked() -> None:
+    with pytest.raises(ValueError, match="mu must be in \\(0, 1\\], got 0.0"):
+        ggx_specular_albedo(np.array([0.3]), np.array([0.5, 0.0]))
+    with pytest.raises(ValueError, match="roughness must be in \\[0, 1\\], got 1.5"):
+        principled_diffuse_albedo(np.array([1.5]), np.array([0.5]))
+    # a Lambertian-like limit: at normal view and roughness 0, 1 - 1/42 (the (1 - F_i / 2) factor alone)
+    np.testing.assert_allclose(principled_diffuse_albedo(np.array([0.0]), np.array([1.0])), 1 - 1 / 42, rtol=1e-12)

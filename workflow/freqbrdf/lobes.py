@@ -118,6 +118,14 @@ def lobe_table(lobe: str, lmax: int) -> np.ndarray:
     return np.ascontiguousarray(np.stack([f, df * alpha[:, None]], axis=1))
 
 
+def _check_unit_interval(values: np.ndarray, name: str, open_below: bool) -> None:
+    """Raise naming the first of ``values`` outside [0, 1] (or (0, 1] if ``open_below``)."""
+    bad = ~(((values > 0) if open_below else (values >= 0)) & (values <= 1))
+    if np.any(bad):
+        interval = "(0, 1]" if open_below else "[0, 1]"
+        raise ValueError(f"{name} must be in {interval}, got {float(values[bad].flat[0])!r}")
+
+
 def _smith_g1(cos_theta: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     """GGX Smith ``G1 = 2 / (1 + sqrt(1 + alpha^2 tan^2 theta))``, 0 at and below the horizon."""
     c = np.clip(cos_theta, 1e-12, 1.0)
@@ -153,8 +161,8 @@ def ggx_specular_albedo(alpha: np.ndarray, mu: np.ndarray, nodes: int = 32) -> t
     """
     a = np.asarray(alpha, dtype=np.float64)[:, None, None]
     m = np.asarray(mu, dtype=np.float64)[None, :, None]
-    if not (np.all((a > 0) & (a <= 1)) and np.all((m > 0) & (m <= 1))):
-        raise ValueError("alpha and mu must be in (0, 1]")
+    _check_unit_interval(a, "alpha", open_below=True)
+    _check_unit_interval(m, "mu", open_below=True)
     u, w = _unit_interval_nodes(nodes)
     u1, u2 = (g.ravel() for g in np.meshgrid(u, u, indexing="ij"))
     weight = np.outer(w, w).ravel()
@@ -184,7 +192,7 @@ def principled_diffuse_albedo(roughness: np.ndarray, mu: np.ndarray, nodes: int 
     ``R = 2 r cos^2 theta_d``, ``cos^2 theta_d = (1 + i.o) / 2``: darker than Lambert at
     grazing views when smooth, brighter when rough. The albedo ``(1 / pi) int (...) cos theta_i
     d omega_i`` is a quadratic in r; a product Gauss-Legendre rule in ``cos theta_i`` and the
-    azimuth evaluates it (the integrand is a polynomial in both but for the azimuth's cosine).
+    azimuth evaluates it (the integrand is a polynomial in ``cos theta_i``, its sine and ``cos phi``).
 
     Parameters
     ----------
@@ -200,6 +208,8 @@ def principled_diffuse_albedo(roughness: np.ndarray, mu: np.ndarray, nodes: int 
     """
     r = np.asarray(roughness, dtype=np.float64)[:, None, None]
     m = np.asarray(mu, dtype=np.float64)[None, :, None]
+    _check_unit_interval(r, "roughness", open_below=False)
+    _check_unit_interval(m, "mu", open_below=True)
     u, w = _unit_interval_nodes(nodes)
     cos_i, phi = (g.ravel() for g in np.meshgrid(u, np.pi * u, indexing="ij"))  # phi in [0, pi]: symmetric
     weight = 2.0 * np.outer(w, w).ravel()  # (1 / pi) d omega = (1 / pi) d cos d phi, phi = pi u over [0, pi], twice
@@ -261,7 +271,7 @@ def _view_table(view_weight: str, diffuse: str, lobe: str, lmax: int) -> np.ndar
         components = [rise / response, offset / response, factor]
     table = np.empty((n_alpha, 2, len(components), n_mu + 1))
     for k, value in enumerate(components):
-        value = np.concatenate([value[:, :1], value], axis=1)  # mu = 0 holds mu = 1/64's: views there are cut
+        value = np.concatenate([value[:, :1], value], axis=1)  # mu = 0 holds mu = 1/64's (G1 and S vanish at 0)
         table[:, 0, k] = value
         table[:, 1, k] = np.gradient(value, log_alpha, axis=0, edge_order=2)
     table.flags.writeable = False
