@@ -847,7 +847,9 @@ def loss_and_gradient(
       (where alpha is clamped at `ALPHA_MIN`, ``2 r`` becomes ``2 sqrt(ALPHA_MIN)``:
       a straight-through derivative, see `alpha_from_roughness`);
 
-    plus ``tv_weight`` times the TV gradient (`total_variation`).
+    plus ``tv_weight`` times the TV gradient (`total_variation`). With a ``view`` table,
+    ``E_c / pi`` becomes ``d E_c / pi`` and ``(1 - c5) G1m``, ``c5 G1m`` become ``a``, ``b``
+    (`freqbrdf.lobes.view_table`), each with its own derivative in alpha in ``dL/dr``.
 
     Parameters
     ----------
