@@ -95,6 +95,8 @@ SWEEP = {
     "lr 0.05, tv 0.01, ggx lobe, principled": {"lr": 0.05, "tv_weight": 0.01, "lobe": "ggx", "diffuse": "principled"},
     "lr 0.02, tv 0.03, ggx lobe, principled": {"lr": 0.02, "tv_weight": 0.03, "lobe": "ggx", "diffuse": "principled"},
     "lr 0.05, tv 0.1, ggx lobe, principled": {"lr": 0.05, "tv_weight": 0.1, "lobe": "ggx", "diffuse": "principled"},
+    "lr 0.05, tv 0.03, ggx lobe, principled, lmax 24": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx",
+                                                         "diffuse": "principled", "lmax": 24},
     "lr 0.05, tv 0.03, ggx lobe, albedo": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx", "view_weight": "albedo"},
     "lr 0.05, tv 0.03, ggx lobe, albedo, principled": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx",
                                                        "view_weight": "albedo", "diffuse": "principled"},
