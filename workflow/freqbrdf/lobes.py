@@ -17,8 +17,8 @@ import functools
 
 import numpy as np
 
-from .brdf import ALPHA_MIN
-from .validation import check_shape
+from .brdf import ALPHA_MIN, smith_g1, tan2_theta
+from .validation import check_choice, check_shape
 
 __all__ = ["LOBES", "LOBE_NODES", "VIEW_WEIGHTS", "DIFFUSE_LOBES", "VIEW_NODES", "ggx_lobe_spectrum", "lobe_table",
            "ggx_specular_albedo", "principled_diffuse_albedo", "uniform_response", "view_table"]
@@ -74,8 +74,7 @@ def ggx_lobe_spectrum(alpha: np.ndarray, lmax: int, nodes: int = 2048) -> tuple[
     """
     a = np.asarray(alpha, dtype=np.float64)
     check_shape(a, "alpha", (None,))
-    if not np.all((a > 0) & (a <= 1)):
-        raise ValueError(f"alpha must be in (0, 1], got {float(a[~((a > 0) & (a <= 1))][0])!r}")
+    _check_unit_interval(a, "alpha", open_below=True)
     xi, w = _unit_interval_nodes(nodes)
     den = 1.0 + (a[:, None] ** 2 - 1.0) * xi
     t = 2.0 * (1.0 - xi) / den - 1.0  # cos theta, (A, n)
@@ -109,9 +108,7 @@ def lobe_table(lobe: str, lmax: int) -> np.ndarray:
         for GGX ``(LOBE_NODES, 2, lmax + 1)``: ``f_l`` and ``df_l / d log alpha`` at ``log alpha``
         evenly spaced over ``[log ALPHA_MIN, 0]``, the nodes of a cubic Hermite interpolant.
     """
-    if lobe not in LOBES:
-        raise ValueError(f"lobe must be one of {LOBES}, got {lobe!r}")
-    if lobe == "gaussian":
+    if check_choice(lobe, "lobe", LOBES) == "gaussian":
         return np.empty((0, 2, lmax + 1))
     alpha = np.exp(np.linspace(np.log(ALPHA_MIN), 0.0, LOBE_NODES))
     f, df = ggx_lobe_spectrum(alpha, lmax)
@@ -126,10 +123,9 @@ def _check_unit_interval(values: np.ndarray, name: str, open_below: bool) -> Non
         raise ValueError(f"{name} must be in {interval}, got {float(values[bad].flat[0])!r}")
 
 
-def _smith_g1(cos_theta: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """GGX Smith ``G1 = 2 / (1 + sqrt(1 + alpha^2 tan^2 theta))``, 0 at and below the horizon."""
-    c = np.clip(cos_theta, 1e-12, 1.0)
-    return np.where(cos_theta > 0, 2.0 / (1.0 + np.sqrt(1.0 + alpha**2 * (1.0 / c**2 - 1.0))), 0.0)
+def _shadowing(cos_theta: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """Smith ``G1`` (`freqbrdf.brdf.smith_g1`) above the horizon, 0 at and below it."""
+    return np.where(cos_theta > 0, smith_g1(tan2_theta(np.clip(cos_theta, 1e-12, 1.0)), alpha), 0.0)
 
 
 def ggx_specular_albedo(alpha: np.ndarray, mu: np.ndarray, nodes: int = 32) -> tuple[np.ndarray, np.ndarray]:
@@ -178,7 +174,7 @@ def ggx_specular_albedo(alpha: np.ndarray, mu: np.ndarray, nodes: int = 32) -> t
     hx, hy, hz = a * (up * vx - t2 * vz), a * t1, np.maximum(up * vz + t2 * vx, 0.0)
     norm = np.sqrt(hx * hx + hy * hy + hz * hz)
     oh = np.clip((hx * ox + hz * m) / norm, 0.0, 1.0)
-    g1_i = _smith_g1(2.0 * oh * hz / norm - m, a)
+    g1_i = _shadowing(2.0 * oh * hz / norm - m, a)
     c5 = (1.0 - oh) ** 5
     return (g1_i * (1.0 - c5)) @ weight, (g1_i * c5) @ weight
 
@@ -248,12 +244,11 @@ def uniform_response(alpha: np.ndarray, mu: np.ndarray, lobe: str, lmax: int, no
         Shape ``(A, M)``, float64.
     """
     a = np.asarray(alpha, dtype=np.float64)
-    if lobe not in LOBES:
-        raise ValueError(f"lobe must be one of {LOBES}, got {lobe!r}")
+    check_choice(lobe, "lobe", LOBES)
     x, w = _unit_interval_nodes(nodes)
     f = np.exp(-((a[:, None] * np.arange(lmax + 1)) ** 2)) if lobe == "gaussian" else ggx_lobe_spectrum(a, lmax)[0]
     legendre = np.polynomial.legendre.legvander
-    c = (_smith_g1(x[None, :], a[:, None]) * w) @ legendre(x, lmax)  # (A, L)
+    c = (_shadowing(x[None, :], a[:, None]) * w) @ legendre(x, lmax)  # (A, L)
     degree = (2 * np.arange(lmax + 1) + 1) / 2
     return (f * c * degree) @ legendre(np.asarray(mu, dtype=np.float64), lmax).T
 
@@ -323,10 +318,9 @@ def view_table(view_weight: str, diffuse: str, lobe: str, lmax: int) -> np.ndarr
         ``[log ALPHA_MIN, 0]`` and ``cos theta_o = j / VIEW_NODES[1]``: cubic Hermite in
         ``log alpha``, linear in ``cos theta_o``. Read-only (cached).
     """
-    for name, value, allowed in (("view_weight", view_weight, VIEW_WEIGHTS), ("diffuse", diffuse, DIFFUSE_LOBES),
-                                 ("lobe", lobe, LOBES)):
-        if value not in allowed:
-            raise ValueError(f"{name} must be one of {allowed}, got {value!r}")
+    check_choice(view_weight, "view_weight", VIEW_WEIGHTS)
+    check_choice(diffuse, "diffuse", DIFFUSE_LOBES)
+    check_choice(lobe, "lobe", LOBES)
     if view_weight == "paper" and diffuse == "lambert":
         return np.empty((0, 2, 3, 0))
     return _view_table(view_weight, diffuse, lobe, int(lmax))

@@ -97,7 +97,7 @@ from .lobes import DIFFUSE_LOBES, LOBES, VIEW_WEIGHTS, ggx_lobe_spectrum, lobe_t
 from .kernels import degree_sums, grid_search, l1_loss_gradient, lm_sweep, set_threads
 from .sh import recurrence_tables
 from .shfit import mirror_directions
-from .validation import check_finite, check_int, check_shape
+from .validation import check_choice, check_finite, check_int, check_shape
 
 __all__ = [
     "PARAM_COLUMNS",
@@ -228,14 +228,9 @@ class OptimiseSettings:
     dtype: str = "float32"
 
     def __post_init__(self) -> None:
-        if self.solver not in SOLVERS:
-            raise ValueError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
-        if self.lobe not in LOBES:
-            raise ValueError(f"lobe must be one of {LOBES}, got {self.lobe!r}")
-        if self.view_weight not in VIEW_WEIGHTS:
-            raise ValueError(f"view_weight must be one of {VIEW_WEIGHTS}, got {self.view_weight!r}")
-        if self.diffuse not in DIFFUSE_LOBES:
-            raise ValueError(f"diffuse must be one of {DIFFUSE_LOBES}, got {self.diffuse!r}")
+        for name, choices in (("solver", SOLVERS), ("lobe", LOBES), ("view_weight", VIEW_WEIGHTS),
+                              ("diffuse", DIFFUSE_LOBES), ("dtype", _DTYPES)):
+            check_choice(getattr(self, name), name, choices)
         check_int(self.sweeps, "sweeps", 0)
         check_int(self.sweep_refit_every, "sweep_refit_every", 1)
         for name in ("sweep_tolerance", "irls_floor", "tv_floor", "damping"):
@@ -259,8 +254,6 @@ class OptimiseSettings:
             raise ValueError(f"tv_weight must be a finite number >= 0, got {self.tv_weight!r}")
         if not 0.0 <= self.min_roughness < 1.0:
             raise ValueError(f"min_roughness must be in [0, 1), got {self.min_roughness!r}")
-        if self.dtype not in _DTYPES:
-            raise ValueError(f"dtype must be one of {_DTYPES}, got {self.dtype!r}")
 
     @classmethod
     def from_config(cls, config: Mapping[str, object], workers: int = 1) -> OptimiseSettings:
@@ -319,9 +312,7 @@ def identifiable_roughness(lmax: int, tail: float = 0.05, lobe: str = "gaussian"
     lmax = check_int(lmax, "lmax", 0)
     if not 0.0 < tail < 1.0:
         raise ValueError(f"tail must be in (0, 1), got {tail!r}")
-    if lobe not in LOBES:
-        raise ValueError(f"lobe must be one of {LOBES}, got {lobe!r}")
-    if lobe == "gaussian":
+    if check_choice(lobe, "lobe", LOBES) == "gaussian":
         return float(np.sqrt(min(np.sqrt(np.log(1.0 / tail)) / (lmax + 1), 1.0)))
     degrees = np.arange(16 * (lmax + 1) + 1)
 
