@@ -13,7 +13,7 @@ from freqbrdf import optimise as op
 from freqbrdf import methods
 from freqbrdf import kernels, sh
 from freqbrdf.brdf import ALPHA_MIN, R0_DIELECTRIC
-from freqbrdf.lobes import ggx_lobe_spectrum, lobe_table, view_table
+from freqbrdf.lobes import ggx_lobe_spectrum
 
 OPTIMISER_METHODS = methods.methods_of("optimise_svbrdf")
 
@@ -115,8 +115,7 @@ MODELS = [("gaussian", "paper", "lambert"), ("ggx", "paper", "lambert"), ("ggx",
 def tables(model: tuple[str, str, str], method: str) -> tuple[np.ndarray, np.ndarray]:
     """The lobe and view tables `optimise` uses for ``method`` with ``model``."""
     lobe, weight, diffuse = model
-    shadowing, masking, _ = variant(method)
-    return lobe_table(lobe, LMAX), view_table(weight if shadowing and masking else "paper", diffuse, lobe, LMAX)
+    return op.model_tables(op.OptimiseSettings(lobe=lobe, view_weight=weight, diffuse=diffuse), method, LMAX)
 
 
 def render(scene: dict, params: dict, method: str, model: tuple[str, str, str] = MODELS[0]) -> np.ndarray:

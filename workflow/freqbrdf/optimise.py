@@ -106,6 +106,7 @@ __all__ = [
     "estimate_light",
     "Problem",
     "identifiable_roughness",
+    "model_tables",
     "atlas_neighbours",
     "build_problem",
     "pack_params",
@@ -1014,15 +1015,22 @@ def optimise(
     if not isinstance(settings, OptimiseSettings):
         raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
     problem = build_problem(obs, irradiance, settings.dtype)
-    lobe = lobe_table(settings.lobe, light.lmax)
-    view = view_table(settings.view_weight if shadowing and masking else "paper", settings.diffuse, settings.lobe,
-                      light.lmax)
+    lobe, view = model_tables(settings, method, light.lmax)
     xp = _start(problem, light, init, shadowing, masking, lobe, view, settings)[problem.perm]  # internal order
     descend = _descend_lm if settings.solver == "lm" else _descend
     xp, curve = descend(xp, problem, light, shadowing, masking, lobe, view, settings)
     x = np.empty_like(xp)
     x[problem.perm] = xp
     return unpack_params(x), curve
+
+
+def model_tables(settings: OptimiseSettings, method: str, lmax: int) -> tuple[np.ndarray, np.ndarray]:
+    """The lobe (`freqbrdf.lobes.lobe_table`) and view (`freqbrdf.lobes.view_table`) tables of
+    ``method``'s model at degree ``lmax``: ``settings.view_weight`` applies to the methods with
+    shadowing and masking, the others ablate the paper's terms and keep its specular weight."""
+    shadowing, masking = _check_method(method)
+    view_weight = settings.view_weight if shadowing and masking else "paper"
+    return lobe_table(settings.lobe, lmax), view_table(view_weight, settings.diffuse, settings.lobe, lmax)
 
 
 def _start(
