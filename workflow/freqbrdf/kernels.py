@@ -176,6 +176,18 @@ def _view(view: np.ndarray | None) -> np.ndarray:
     return view
 
 
+def _point(point: tuple[np.ndarray, np.ndarray] | None, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``point`` (``wo`` (N, 3), ``src`` (S, P, 7)) checked against the pairs and texels of ``start``;
+    None: no point sources."""
+    if point is None:
+        return np.zeros((0, 3)), np.zeros((start.shape[0] - 1, 0, 7))
+    wo, src = (np.ascontiguousarray(a, np.float64) for a in point)
+    if wo.shape != (start[-1], 3) or src.ndim != 3 or src.shape[0] != start.shape[0] - 1 or src.shape[2] != 7:
+        raise ValueError(f"point must be (wo (N, 3), src (S, P, 7)) for {start.shape[0] - 1} texels and {start[-1]} "
+                         f"pairs, got shapes {wo.shape} and {src.shape}")
+    return wo, src
+
+
 @numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
 def _hermite(alpha, alpha_min, nodes):  # pragma: no cover - compiled
     """Cubic Hermite interpolation in ``log alpha`` over ``nodes`` even nodes of ``[log alpha_min, 0]``:
@@ -273,7 +285,7 @@ def _model(m, base, e_pi, r0_dielectric, work, c):  # pragma: no cover - compile
 
 
 @numba.njit(cache=True, inline="always")
-def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work):  # pragma: no cover - compiled
+def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, texel):  # pragma: no cover - compiled
     """Per channel of pair n, the specular term split as ``R0 work[0] + work[1]``, in ``work[2]``,
     ``work[3]`` their derivatives in alpha, in ``work[4]`` and ``work[5]`` the diffuse factor d and
     its derivative.
@@ -281,7 +293,8 @@ def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd
     With an empty ``view``, the paper's ``F G1m Spec``: ``work[0] = (1 - c5) G1m Spec``,
     ``work[1] = c5 G1m Spec``, ``d = 1``; otherwise ``a Spec``, ``b Spec`` and ``d``
     (`freqbrdf.lobes.view_table`; ``vi``, ``vw``, ``vd`` from `_hermite` at alpha), ``a`` and
-    ``b`` the paper's if the table holds ``d`` only.
+    ``b`` the paper's if the table holds ``d`` only. Then each point source of ``texel`` in ``src``
+    adds its own microfacet term (`_point_source`).
     """
     if view.shape[0] == 0:
         g1, dg1 = _masking(alpha, tan2[n], masking)
@@ -302,11 +315,44 @@ def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd
         work[1, c] = v * s
         work[2, c] = du * s + u * d
         work[3, c] = dv * s + v * d
+    for j in range(src.shape[1]):
+        _point_source(alpha, wo, n, tan2[n], masking, src, texel, j, work)
+
+
+@numba.njit(cache=True, inline="always")
+def _point_source(alpha, wo, n, tan2_o, masking, src, s, j, work):  # pragma: no cover - compiled
+    """Add point source j of texel s to the specular parts of pair n (`_pair_terms`): the GGX
+    microfacet BRDF times cos theta_i, ``D G1(theta_i) G1m F / (4 cos theta_o)`` with Schlick's
+    ``F = R0 (1 - c5h) + c5h`` at the half vector, times the source's power."""
+    iz = src[s, j, 2]
+    if iz <= 0.0:
+        return
+    ox, oy, oz = wo[n, 0], wo[n, 1], wo[n, 2]
+    hx, hy, hz = src[s, j, 0] + ox, src[s, j, 1] + oy, iz + oz
+    norm = np.sqrt(hx * hx + hy * hy + hz * hz)
+    if norm <= 0.0 or oz <= 0.0:
+        return
+    cos2_h = (hz / norm) ** 2
+    c5h = (1.0 - min(max((hx * ox + hy * oy + hz * oz) / norm, 0.0), 1.0)) ** 5
+    a2 = alpha * alpha
+    t = cos2_h * (a2 - 1.0) + 1.0
+    ndf = a2 / (np.pi * t * t)
+    dndf = 2.0 * alpha / (np.pi * t * t) * (1.0 - 2.0 * a2 * cos2_h / t)
+    gi, dgi = _masking(alpha, src[s, j, 3], True)  # src[s, j, 3] is 0 without shadowing: G1 = 1
+    gm, dgm = _masking(alpha, tan2_o, masking)
+    q = ndf * gi * gm / (4.0 * oz)
+    dq = (dndf * gi * gm + ndf * dgi * gm + ndf * gi * dgm) / (4.0 * oz)
+    for c in range(3):
+        power = src[s, j, 4 + c]
+        work[0, c] += power * q * (1.0 - c5h)
+        work[1, c] += power * q * c5h
+        work[2, c] += power * dq * (1.0 - c5h)
+        work[3, c] += power * dq * c5h
 
 
 @numba.njit(parallel=True, cache=True, fastmath=True)
 def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe,
-                      view, grad, loss, model):  # pragma: no cover - compiled
+                      view, wo, src, grad, loss, model):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
     write_model = model.shape[0] > 0
@@ -326,7 +372,7 @@ def _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, a
             sum_d = 0.0
             total = 0.0
             for n in range(start[s], start[s + 1]):
-                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work)
+                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
                 for c in range(3):
                     value = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c)
                     if write_model:
@@ -350,6 +396,7 @@ def l1_loss_gradient(
     x: np.ndarray, start: np.ndarray, light: np.ndarray, radiance: np.ndarray, schlick: np.ndarray,
     tan2: np.ndarray, e_pi: np.ndarray, masking: bool, alpha_min: float, r0_dielectric: float,
     model: np.ndarray | None = None, lobe: np.ndarray | None = None, view: np.ndarray | None = None,
+    point: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-texel L1 data term of the mixed model and its gradient (paper Eqs. 11 and 13).
 
@@ -387,6 +434,12 @@ def l1_loss_gradient(
     view : numpy.ndarray, optional
         The weights per view, specular and diffuse (`freqbrdf.lobes.view_table`); default the paper's
         ``F(theta_o) G1(theta_o)`` (``G1m = 1`` without ``masking``) and Lambertian diffuse term.
+    point : tuple of numpy.ndarray, optional
+        Point sources outside the SH light (`freqbrdf.light.extract_point_sources`): ``wo``
+        (N, 3), each pair's view direction in its texel's frame, and ``src`` (S, P, 7), per
+        texel and source the direction in the texel's frame, ``tan^2 theta_i`` (0: no
+        shadowing) and the power per channel. Each adds the GGX microfacet term of
+        `_point_source` to the specular parts ``R0 a + b``. Default: none.
 
     Returns
     -------
@@ -398,12 +451,12 @@ def l1_loss_gradient(
     grad = np.empty((x.shape[0], 5))
     loss = np.empty(x.shape[0])
     _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
-                      _table(lobe, light), _view(view), grad, loss, np.empty((0, 3)) if model is None else model)
+                      _table(lobe, light), _view(view), *_point(point, start), grad, loss, np.empty((0, 3)) if model is None else model)
     return loss, grad
 
 
 @numba.njit(parallel=True, cache=True)
-def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, r_grid,
+def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src, r_grid,
                  m_grid, max_pairs, out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
@@ -426,7 +479,7 @@ def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
                 _lobe(alpha, alpha_min, lobe, f, fd)
                 vi, vw, vd = _view_basis(alpha, alpha_min, view)
                 for i in range(k):
-                    _pair_terms(alpha, f, fd, light, lo + i, schlick, tan2, masking, view, vi, vw, vd, work)
+                    _pair_terms(alpha, f, fd, light, lo + i, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
                     for c in range(3):
                         rise[i, c] = work[0, c]
                         fixed[i, c] = work[1, c]
@@ -459,6 +512,7 @@ def grid_search(
     start: np.ndarray, light: np.ndarray, radiance: np.ndarray, schlick: np.ndarray, tan2: np.ndarray,
     e_pi: np.ndarray, masking: bool, alpha_min: float, r0_dielectric: float, roughness: np.ndarray,
     metallic: np.ndarray, lobe: np.ndarray | None = None, view: np.ndarray | None = None,
+    point: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """Per texel, the (roughness, metallic) grid point of least L1 data term, with its best base colour.
 
@@ -473,7 +527,7 @@ def grid_search(
         As for `l1_loss_gradient`.
     roughness, metallic : numpy.ndarray
         1-D grids, float64.
-    lobe, view : numpy.ndarray, optional
+    lobe, view, point : optional
         As for `l1_loss_gradient`.
 
     Returns
@@ -483,13 +537,13 @@ def grid_search(
     """
     out = np.zeros((start.shape[0] - 1, 5))
     _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, _table(lobe, light),
-                 _view(view), np.asarray(roughness, dtype=np.float64), np.asarray(metallic, dtype=np.float64),
+                 _view(view), *_point(point, start), np.asarray(roughness, dtype=np.float64), np.asarray(metallic, dtype=np.float64),
                  int(np.diff(start).max(initial=0)), out)
     return out
 
 
 @numba.njit(cache=True, inline="always")
-def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src,
                 nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
     """Objective of texel s at parameters ``xs`` (5,): its L1 data term times ``data_scale`` plus
     ``tv_scale`` times the TV of its edges, the neighbours held at ``x`` (S, 5); ``f``, ``fd``
@@ -501,7 +555,7 @@ def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
         vi, vw, vd = _view_basis(alpha, alpha_min, view)
         m = xs[4]
         for n in range(start[s], start[s + 1]):
-            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work)
+            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
             for c in range(3):
                 cost += abs(_model(m, xs[c], e_pi[s, c], r0_dielectric, work, c) - radiance[n, c])
         cost *= data_scale
@@ -543,7 +597,7 @@ def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
-def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src,
                  nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h,
                  g):  # pragma: no cover - compiled
     """Texel s's objective at ``x[s]``, and in ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton
@@ -565,7 +619,7 @@ def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
         _lobe(alpha, alpha_min, lobe, f, fd)
         vi, vw, vd = _view_basis(alpha, alpha_min, view)
         for p in range(lo, hi):
-            _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work)
+            _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
             for c in range(3):
                 res = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c) - radiance[p, c]
                 cost += abs(res)
@@ -634,7 +688,7 @@ def _predicted_gain(h, g, step):  # pragma: no cover - compiled
 
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
-def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src,
               nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
               cost_out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
@@ -652,7 +706,7 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
         for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
             s = texels[i]
             cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                r0_dielectric, lobe, view, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor,
+                                r0_dielectric, lobe, view, wo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor,
                                 f, fd, work, h, g)
             cost_out[i] = cost
             lam_s = lam[s]
@@ -667,7 +721,7 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                 for q in range(5):
                     trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
                 new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                  r0_dielectric, lobe, view, nb_start, nb, x, data_scale, tv_scale, f, fd, work)
+                                  r0_dielectric, lobe, view, wo, src, nb_start, nb, x, data_scale, tv_scale, f, fd, work)
                 if new < cost:
                     x[s, :] = trial
                     lam_s = max(lam_s * _LM_DOWN, _LM_MIN)
@@ -682,6 +736,7 @@ def lm_sweep(
     r0_dielectric: float, nb_start: np.ndarray, nb: np.ndarray, data_scale: float, tv_scale: float,
     lower: np.ndarray, upper: np.ndarray, irls_floor: float, tv_floor: float, lam: np.ndarray, tries: int,
     lobe: np.ndarray | None = None, view: np.ndarray | None = None,
+    point: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """One damped Gauss-Newton (Levenberg-Marquardt) step per texel of ``texels`` on the L1 + TV objective.
 
@@ -726,7 +781,7 @@ def lm_sweep(
         Shape ``(S,)``: damping per texel, updated in place.
     tries : int
         Attempts per texel.
-    lobe, view : numpy.ndarray, optional
+    lobe, view, point : optional
         As for `l1_loss_gradient`.
 
     Returns
@@ -736,6 +791,6 @@ def lm_sweep(
     """
     cost = np.empty(texels.shape[0])
     _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
-              _table(lobe, light), _view(view), nb_start, nb, float(data_scale), float(tv_scale), lower, upper,
+              _table(lobe, light), _view(view), *_point(point, start), nb_start, nb, float(data_scale), float(tv_scale), lower, upper,
               float(irls_floor), float(tv_floor), lam, int(tries), cost)
     return cost

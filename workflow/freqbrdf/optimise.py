@@ -83,6 +83,7 @@ threads. Timings are measured by ``bench/optimise_bench.py``.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -91,7 +92,7 @@ from scipy import sparse
 
 from .artefacts import Observations
 from .brdf import ALPHA_MIN, R0_DIELECTRIC, TEXTURES, alpha_from_roughness, tan2_theta
-from .light import LightQuadrature, irradiance, light_quadrature, shadowed_light
+from .light import LightQuadrature, PointSources, extract_point_sources, irradiance, light_quadrature, shadowed_light
 from .methods import get_method
 from .lobes import DIFFUSE_LOBES, LOBES, VIEW_WEIGHTS, ggx_lobe_spectrum, lobe_table, view_table
 from .kernels import degree_sums, grid_search, l1_loss_gradient, lm_sweep, set_threads
@@ -270,12 +271,35 @@ class OptimiseSettings:
                    else float(bound))
 
 
-def estimate_light(envmap: np.ndarray, obs: Observations, method: str, lmax: int) -> tuple[LightQuadrature, np.ndarray]:
+def estimate_light(
+    envmap: np.ndarray, obs: Observations, method: str, lmax: int, point_sources: Mapping[str, float] | None = None,
+) -> tuple[LightQuadrature, np.ndarray]:
     """The light of a method's model at degree ``lmax`` and the irradiance at the texel normals:
     the map as it is, or low-passed by the views' band limit a' for a ``prefiltered`` method
-    (``freq_paper``: paper section 4.2)."""
+    (``freq_paper``: paper section 4.2). With ``point_sources`` (``max_radius_deg``,
+    ``min_radiance``: `freqbrdf.light.extract_point_sources`) and no pre-filter, the map's
+    compact bright sources leave the SH light and ride along as ``LightQuadrature.sources``;
+    the irradiance is always the whole map's."""
     prefilter = obs.a_prime if get_method(method).prefiltered else 0.0
-    return light_quadrature(envmap, lmax, prefilter=prefilter), irradiance(envmap, obs.texels.normal)
+    e = irradiance(envmap, obs.texels.normal)
+    if prefilter or not point_sources or not point_sources["max_radius_deg"]:
+        return light_quadrature(envmap, lmax, prefilter=prefilter), e
+    residual, sources = extract_point_sources(envmap, point_sources["max_radius_deg"], point_sources["min_radiance"])
+    return dataclasses.replace(light_quadrature(residual, lmax), sources=sources), e
+
+
+def point_terms(problem: Problem, sources: PointSources | None, shadowing: bool) -> tuple[np.ndarray, np.ndarray] | None:
+    """The kernels' ``point`` argument (`freqbrdf.kernels.l1_loss_gradient`) for ``sources``: each
+    pair's view and, per observed texel (internal order) and source, its direction in the
+    texel's frame, ``tan^2 theta_i`` (0 without ``shadowing``: G1 = 1) and its power.
+    None if there are no sources."""
+    if sources is None or not len(sources.power):
+        return None
+    local = np.einsum("tij,sj->tsi", problem.frame[problem.observed], sources.directions)  # (T_obs, S, 3)
+    cos_i = local[..., 2]
+    tan2_i = tan2_theta(np.clip(cos_i, 1e-6, 1.0)) if shadowing else np.zeros_like(cos_i)
+    power = np.broadcast_to(sources.power[None], cos_i.shape + (3,))
+    return problem.wo_local, np.concatenate([local, tan2_i[..., None], power], axis=2)
 
 
 # --------------------------------------------------------------------------
@@ -386,6 +410,10 @@ class Problem:
         Shape ``(N,)``, float64: fit weight and ``cos theta_o``.
     mirror : numpy.ndarray
         Shape ``(N, 3)``, float64: mirror direction (unit, world frame).
+    wo_local : numpy.ndarray
+        Shape ``(N, 3)``, float64: view direction in the texel's frame.
+    frame : numpy.ndarray
+        Shape ``(T, 3, 3)``, float64: rows tangent, bitangent, normal (world frame).
     normal : numpy.ndarray
         Shape ``(T, 3)``, float64: texel normal (world frame).
     irradiance : numpy.ndarray
@@ -425,6 +453,8 @@ class Problem:
     weight: np.ndarray
     cos_o: np.ndarray
     mirror: np.ndarray
+    wo_local: np.ndarray
+    frame: np.ndarray
     normal: np.ndarray
     irradiance: np.ndarray
     neighbours: np.ndarray
@@ -573,6 +603,8 @@ def build_problem(obs: Observations, irradiance: np.ndarray, dtype: str = "float
         weight=w[pt, pv].astype(np.float64),
         cos_o=cos_o,
         mirror=np.einsum("nji,nj->ni", fr[pt], mirror_directions(wo_p)),
+        wo_local=np.asarray(wo_p, dtype=np.float64),
+        frame=fr,
         normal=fr[:, 2] / np.linalg.norm(fr[:, 2], axis=1, keepdims=True),
         irradiance=e,
         neighbours=neighbours,
@@ -762,20 +794,20 @@ def total_variation(x: np.ndarray, neighbours: np.ndarray) -> tuple[float, np.nd
 
 
 def _l1(xp: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, model: np.ndarray | None = None,
-        lobe: np.ndarray | None = None, view: np.ndarray | None = None):
+        lobe: np.ndarray | None = None, view: np.ndarray | None = None, point: tuple | None = None):
     """Per-texel L1 data term and gradient of the observed texels (`freqbrdf.kernels.l1_loss_gradient`)."""
     return l1_loss_gradient(
         np.ascontiguousarray(xp[: problem.n_observed]), problem.start, light, problem.radiance, problem.schlick,
-        problem.tan2, problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, model, lobe, view,
+        problem.tan2, problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, model, lobe, view, point,
     )
 
 
 def _loss_and_gradient(
     xp: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float,
-    lobe: np.ndarray | None = None, view: np.ndarray | None = None,
+    lobe: np.ndarray | None = None, view: np.ndarray | None = None, point: tuple | None = None,
 ) -> tuple[float, np.ndarray]:
     """`loss_and_gradient` of internal-order ``xp`` (texel-order sums, so independent of threads)."""
-    loss_per_texel, grad_obs = _l1(xp, problem, light, masking, lobe=lobe, view=view)
+    loss_per_texel, grad_obs = _l1(xp, problem, light, masking, lobe=lobe, view=view, point=point)
     scale = 1.0 / (3.0 * problem.n_pairs)  # mean over pairs and channels
     grad = np.zeros_like(xp)
     grad[: problem.n_observed] = grad_obs * scale
@@ -788,7 +820,7 @@ def _loss_and_gradient(
 
 
 def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool,
-            lobe: np.ndarray | None = None, view: np.ndarray | None = None) -> np.ndarray:
+            lobe: np.ndarray | None = None, view: np.ndarray | None = None, point: tuple | None = None) -> np.ndarray:
     """Model radiance of every observation.
 
     Parameters
@@ -815,7 +847,7 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool,
     x = _check_x(x, problem)
     p = _check_light(light, problem)
     model = np.empty((problem.n_pairs, 3))
-    _l1(x[problem.perm], problem, p, masking, model, lobe, view)
+    _l1(x[problem.perm], problem, p, masking, model, lobe, view, point)
     out = np.zeros((problem.n_texels, problem.n_views, 3))
     out[problem.pair_texel, problem.pair_view] = model
     return out
@@ -823,7 +855,7 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool,
 
 def loss_and_gradient(
     x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool, tv_weight: float = 1e-3, workers: int = 1,
-    lobe: np.ndarray | None = None, view: np.ndarray | None = None,
+    lobe: np.ndarray | None = None, view: np.ndarray | None = None, point: tuple | None = None,
 ) -> tuple[float, np.ndarray]:
     """Objective of paper Eq. 13 plus total variation (section 4.3) and its analytic gradient, light terms held fixed.
 
@@ -875,7 +907,7 @@ def loss_and_gradient(
     if not (np.isfinite(tv_weight) and tv_weight >= 0):
         raise ValueError(f"tv_weight must be a finite number >= 0, got {tv_weight!r}")
     set_threads(check_int(workers, "workers", 1))
-    loss, grad_p = _loss_and_gradient(x[problem.perm], problem, p, masking, tv_weight, lobe, view)
+    loss, grad_p = _loss_and_gradient(x[problem.perm], problem, p, masking, tv_weight, lobe, view, point)
     grad = np.empty_like(grad_p)
     grad[problem.perm] = grad_p
     return loss, grad
@@ -883,7 +915,7 @@ def loss_and_gradient(
 
 def grid_start(
     problem: Problem, light: np.ndarray, masking: bool, roughness: np.ndarray, metallic: np.ndarray,
-    workers: int = 1, lobe: np.ndarray | None = None, view: np.ndarray | None = None,
+    workers: int = 1, lobe: np.ndarray | None = None, view: np.ndarray | None = None, point: tuple | None = None,
 ) -> np.ndarray:
     """Per-texel start of the optimiser: the best of a (roughness x metallic) grid.
 
@@ -924,7 +956,7 @@ def grid_start(
     xp = np.full((problem.n_texels, _N_PARAMS), 0.5)
     xp[: problem.n_observed] = grid_search(
         problem.start, p, problem.radiance, problem.schlick, problem.tan2, problem.irradiance_pi, masking,
-        ALPHA_MIN, R0_DIELECTRIC, roughness, metallic, lobe, view,
+        ALPHA_MIN, R0_DIELECTRIC, roughness, metallic, lobe, view, point,
     )
     x = np.empty_like(xp)
     x[problem.perm] = xp
@@ -1016,9 +1048,10 @@ def optimise(
         raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
     problem = build_problem(obs, irradiance, settings.dtype)
     lobe, view = model_tables(settings, method, light.lmax)
-    xp = _start(problem, light, init, shadowing, masking, lobe, view, settings)[problem.perm]  # internal order
+    point = point_terms(problem, light.sources, shadowing)
+    xp = _start(problem, light, init, shadowing, masking, lobe, view, point, settings)[problem.perm]  # internal order
     descend = _descend_lm if settings.solver == "lm" else _descend
-    xp, curve = descend(xp, problem, light, shadowing, masking, lobe, view, settings)
+    xp, curve = descend(xp, problem, light, shadowing, masking, lobe, view, point, settings)
     x = np.empty_like(xp)
     x[problem.perm] = xp
     return unpack_params(x), curve
@@ -1035,7 +1068,7 @@ def model_tables(settings: OptimiseSettings, method: str, lmax: int) -> tuple[np
 
 def _start(
     problem: Problem, light: LightQuadrature, init: Mapping[str, np.ndarray] | None, shadowing: bool, masking: bool,
-    lobe: np.ndarray, view: np.ndarray, settings: OptimiseSettings,
+    lobe: np.ndarray, view: np.ndarray, point: tuple | None, settings: OptimiseSettings,
 ) -> np.ndarray:
     """Packed start parameters (T, 5): ``init``, else the grid start or 0.5 everywhere."""
     if init is not None:
@@ -1046,7 +1079,7 @@ def _start(
         return grid_start(
             problem, light_terms(np.full(problem.n_texels, 0.5), problem, shadowing, light, settings.workers),
             masking, np.linspace(0.0, 1.0, settings.grid_roughness), np.linspace(0.0, 1.0, settings.grid_metallic),
-            settings.workers, lobe, view,
+            settings.workers, lobe, view, point,
         )
     return np.full((problem.n_texels, _N_PARAMS), 0.5)
 
@@ -1079,7 +1112,7 @@ class _ShadowedLight:
 
 def _descend_lm(
     xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool, lobe: np.ndarray,
-    view: np.ndarray, settings: OptimiseSettings,
+    view: np.ndarray, point: tuple | None, settings: OptimiseSettings,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Levenberg-Marquardt sweeps from ``xp`` (internal order; `freqbrdf.kernels.lm_sweep`), refitting
     the shadowed light every ``sweep_refit_every`` sweeps; returns the parameters and the objective
@@ -1104,7 +1137,7 @@ def _descend_lm(
     for sweep in range(settings.sweeps):
         if sweep and sweep % settings.sweep_refit_every == 0 and lg.refit(xp):
             last_refit = sweep
-        loss = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight, lobe, view)[0]
+        loss = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight, lobe, view, point)[0]
         if sweep > last_refit and curve[-1] - loss < settings.sweep_tolerance * curve[-1]:
             break
         curve.append(loss)
@@ -1112,13 +1145,13 @@ def _descend_lm(
             lm_sweep(xp, texels, problem.start, lg.terms, problem.radiance, problem.schlick, problem.tan2,
                      problem.irradiance_pi, masking, ALPHA_MIN, R0_DIELECTRIC, problem.nb_start, problem.nb,
                      1.0 / (3.0 * problem.n_pairs), settings.tv_weight / n_edges, lower, upper,
-                     settings.irls_floor, settings.tv_floor, lam, _LM_TRIES, lobe, view)
+                     settings.irls_floor, settings.tv_floor, lam, _LM_TRIES, lobe, view, point)
     return xp, np.asarray(curve)
 
 
 def _descend(
     xp: np.ndarray, problem: Problem, light: LightQuadrature, shadowing: bool, masking: bool, lobe: np.ndarray,
-    view: np.ndarray, settings: OptimiseSettings,
+    view: np.ndarray, point: tuple | None, settings: OptimiseSettings,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Adam from ``xp`` (internal order), refitting the shadowed light every ``refit_every`` steps;
     returns the parameters and the loss at the start of each iteration."""
@@ -1134,7 +1167,7 @@ def _descend(
     for it in range(settings.iterations):
         if it and it % settings.refit_every == 0:
             lg.refit(xp)
-        curve[it], grad = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight, lobe, view)
+        curve[it], grad = _loss_and_gradient(xp, problem, lg.terms, masking, settings.tv_weight, lobe, view, point)
         xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
         xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     return xp, curve

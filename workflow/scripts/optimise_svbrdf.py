@@ -24,10 +24,15 @@ def main(smk, log):
     log.info("roughness bounded below by %.3f (optimise.min_roughness: %s)", settings.min_roughness,
              opt["min_roughness"])
     start = time.perf_counter()
-    light, e = estimate_light(envmap, obs, smk.wildcards.method, opt["lmax"])
+    light, e = estimate_light(envmap, obs, smk.wildcards.method, opt["lmax"], opt["point_sources"])
     log.info("light at degree %d (pre-filter %s) from %d quadrature nodes, irradiance at %d normals in %.1f s",
              opt["lmax"], "a' = %.3f" % obs.a_prime if get_method(smk.wildcards.method).prefiltered else "none",
              len(light.directions), len(texels), time.perf_counter() - start)
+    if light.sources is not None:
+        log.info("%d point sources outside the SH light (optimise.point_sources: %s), %.1f%% of the map's power",
+                 len(light.sources.power), opt["point_sources"],
+                 100.0 * light.sources.power.sum() / max(float(np.sum(light.sources.power))
+                                                          + float(np.sum(light.weighted_radiance)), 1e-30))
     params, curve = optimise(obs, e, light, init=init, method=smk.wildcards.method, settings=settings)
     log.info("%s: %d %s in %.1f s, loss %.4g -> %.4g", smk.wildcards.method, len(curve),
              "Adam steps" if settings.solver == "adam" else "LM sweeps",

@@ -55,7 +55,7 @@ def main(smk, log):
         raise ValueError(f"{cameras_file}: views {cameras.names} are not the observations' {obs.meta['views']}")
     p = smk.params
     settings = OptimiseSettings.from_config(p.optimise, workers=smk.threads)
-    light, e = estimate_light(envmap, obs, "freq", p.optimise["lmax"])
+    light, e = estimate_light(envmap, obs, "freq", p.optimise["lmax"], p.optimise["point_sources"])
     texels = sample_texels(np.arange(len(obs.texels)), p.settings["texels"], p.texel_seed)
     seen = obs.observed
     centre = obs.texels.position[seen].mean(axis=0)

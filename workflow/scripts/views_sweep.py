@@ -22,7 +22,7 @@ def main(smk, log):
     truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth)))
     p = smk.params
     settings = OptimiseSettings.from_config(p.optimise, workers=smk.threads)
-    light, e = estimate_light(envmap, obs, "freq", p.optimise["lmax"])
+    light, e = estimate_light(envmap, obs, "freq", p.optimise["lmax"], p.optimise["point_sources"])
     rows = []
     for count, views in view_subsets(len(obs.meta["views"]), p.counts, p.seed).items():
         start = time.perf_counter()

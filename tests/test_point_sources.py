@@ -1,0 +1,138 @@
+"""Point sources outside the SH light (`freqbrdf.light.extract_point_sources`, the kernels' `point` term)."""
+
+from __future__ import annotations
+
+import numpy as np
+import oracles
+import pytest
+from test_optimise import MODELS, OPTIMISER_METHODS, local_hemisphere, tables, variant
+
+from freqbrdf import light as lt
+from freqbrdf import optimise as op
+from freqbrdf import sh
+from freqbrdf.artefacts import Observations
+
+H, W = 64, 128
+
+
+def sky_with_discs(centres: list[np.ndarray], radii_deg: list[float], radiances: list[float]) -> np.ndarray:
+    """A sky gradient (0.2-0.3) with uniform discs of the given radius and radiance, (H, W, 3)."""
+    d = sh.equirect_directions(H, W)
+    env = np.repeat(0.25 + 0.05 * d[..., 1:2], 3, axis=2)
+    for centre, radius, value in zip(centres, radii_deg, radiances):
+        env[d @ centre >= np.cos(np.radians(radius))] = value * np.array([1.0, 0.8, 0.6])
+    return env
+
+
+def power(env: np.ndarray) -> np.ndarray:
+    return (env * sh.equirect_solid_angles(*env.shape[:2])[:, None, None]).sum(axis=(0, 1))
+
+
+def test_extraction_takes_compact_sources_and_conserves_power() -> None:
+    sun = np.array([0.3, 0.8, -0.2]) / np.linalg.norm([0.3, 0.8, -0.2])
+    lamp = np.array([-0.6, 0.2, 0.7]) / np.linalg.norm([-0.6, 0.2, 0.7])
+    env = sky_with_discs([sun, lamp], [4.0, 25.0], [3000.0, 40.0])
+    residual, sources = lt.extract_point_sources(env, 6.0, 20.0)
+    # the 4-degree disc is a source, the 25-degree one is too wide and stays in the map
+    assert sources.power.shape == (1, 3)
+    assert np.degrees(np.arccos(np.clip(sources.directions[0] @ sun, -1, 1))) < 1.5
+    np.testing.assert_allclose(residual.max(), 40.0)
+    np.testing.assert_allclose(power(residual) + sources.power[0], power(env), rtol=1e-12)
+    # the source is what lay above its surroundings: the disc's power less the sky under it
+    disc = sky_with_discs([sun], [4.0], [3000.0]) - sky_with_discs([], [], [])
+    np.testing.assert_allclose(sources.power[0], power(disc), rtol=0.01)
+    # no radius: nothing leaves the map
+    residual, none = lt.extract_point_sources(env, 0.0, 20.0)
+    assert none.power.shape == (0, 3) and np.array_equal(residual, env)
+
+
+@pytest.mark.parametrize("bad, match", [({"max_radius_deg": -1.0}, "max_radius_deg"),
+                                        ({"min_radiance": 1.0}, "min_radiance")])
+def test_extraction_names_bad_settings(bad: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        lt.extract_point_sources(sky_with_discs([], [], []), **({"max_radius_deg": 3.0, "min_radiance": 20.0} | bad))
+
+
+def one_pixel_scene(n_tex: int = 12, n_views: int = 16, seed: int = 4) -> tuple[dict, np.ndarray, np.ndarray]:
+    """Texels facing random directions near +Y under a map that is black but for one bright pixel."""
+    rng = np.random.default_rng(seed)
+    normal = np.array([0.0, 1.0, 0.0]) + rng.normal(scale=0.3, size=(n_tex, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    helper = np.where(np.abs(normal[:, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    tangent = np.cross(helper, normal)
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    frame = np.stack([tangent, np.cross(normal, tangent), normal], axis=1)
+    wo = np.repeat(local_hemisphere(n_views)[None], n_tex, axis=0)
+    env = np.zeros((H, W, 3))
+    env[20, 40] = [5000.0, 4000.0, 3000.0]
+    return {"frame": frame, "wo_local": wo, "weight": wo[..., 2].copy()}, env, normal
+
+
+@pytest.mark.parametrize("shadowing", [True, False])
+def test_point_term_is_the_microfacet_brdf_of_the_pixel(shadowing: bool) -> None:
+    """A map of one bright pixel: the model with that pixel as a point source and no SH light
+    equals the brute-force GGX oracle (metals, so that no diffuse term enters)."""
+    capture, env, normal = one_pixel_scene()
+    rng = np.random.default_rng(1)
+    n_tex = normal.shape[0]
+    truth = {"base_color": rng.uniform(0.2, 0.9, (n_tex, 3)), "roughness": rng.uniform(0.2, 0.9, n_tex),
+             "metallic": np.ones(n_tex)}
+    residual, sources = lt.extract_point_sources(env, 3.0, 20.0)
+    assert sources.power.shape == (1, 3) and not residual.any()
+    obs = Observations.from_arrays(np.zeros(capture["wo_local"].shape), capture["weight"], capture["wo_local"],
+                                   capture["frame"], np.arange(n_tex), 4)
+    problem = op.build_problem(obs, lt.irradiance(env, normal), "float64")
+    light = np.zeros((problem.n_pairs, 9, 3))
+    point = op.point_terms(problem, sources, shadowing)
+    model = op.forward(op.pack_params(truth, n_tex), problem, light, True, point=point)
+    expected = oracles.ggx_radiance(env, capture, truth)
+    if not shadowing:  # the oracle's G1(theta_i) divided out
+        wi = capture["frame"] @ sources.directions[0]
+        expected = expected / oracles.smith_g1(wi[:, 2], truth["roughness"] ** 2)[:, None, None]
+    seen = capture["weight"] > 0
+    assert expected[seen].max() > 1.0  # the highlight is in view
+    np.testing.assert_allclose(model[seen], expected[seen], rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("model", MODELS[1:3])
+@pytest.mark.parametrize("method", list(OPTIMISER_METHODS))
+def test_gradient_with_point_sources_matches_central_differences(method: str, model: tuple[str, str, str]) -> None:
+    capture, env, normal = one_pixel_scene(n_tex=9, n_views=12, seed=2)
+    env = env + 0.3  # an SH light as well
+    shadowing, masking, _ = variant(method)
+    rng = np.random.default_rng(3)
+    radiance = rng.uniform(0.0, 2.0, capture["wo_local"].shape)
+    obs = Observations.from_arrays(radiance, capture["weight"], capture["wo_local"], capture["frame"],
+                                   np.arange(9), 3)
+    problem = op.build_problem(obs, lt.irradiance(env, normal), "float64")
+    residual, sources = lt.extract_point_sources(env, 3.0, 20.0)
+    x = rng.uniform(0.25, 0.9, (9, 5))
+    light = op.light_terms(x[:, 3], problem, shadowing, lt.light_quadrature(residual, 8))
+    point = op.point_terms(problem, sources, shadowing)
+    table, view = tables(model, method)
+
+    def loss(xx: np.ndarray) -> float:
+        return op.loss_and_gradient(xx, problem, light, masking, 0.0, lobe=table, view=view, point=point)[0]
+
+    _, grad = op.loss_and_gradient(x, problem, light, masking, 0.0, lobe=table, view=view, point=point)
+    _, without = op.loss_and_gradient(x, problem, light, masking, 0.0, lobe=table, view=view)
+    assert np.abs(grad - without).max() > 1e-3  # the source contributes
+    h = 1e-6
+    fd = np.zeros_like(x)
+    for i in range(x.shape[0]):
+        for q in range(5):
+            e = np.zeros_like(x)
+            e[i, q] = h
+            fd[i, q] = (loss(x + e) - loss(x - e)) / (2 * h)
+    np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-8)
+
+
+def test_point_terms_are_checked() -> None:
+    capture, env, normal = one_pixel_scene(n_tex=4, n_views=6)
+    obs = Observations.from_arrays(np.zeros(capture["wo_local"].shape), capture["weight"], capture["wo_local"],
+                                   capture["frame"], np.arange(4), 2)
+    problem = op.build_problem(obs, lt.irradiance(env, normal), "float64")
+    assert op.point_terms(problem, lt.PointSources(np.zeros((0, 3)), np.zeros((0, 3))), True) is None
+    wo, src = op.point_terms(problem, lt.extract_point_sources(env, 3.0, 20.0)[1], True)
+    with pytest.raises(ValueError, match="point must be"):
+        op.forward(np.full((4, 5), 0.5), problem, np.zeros((problem.n_pairs, 3, 3)), True, point=(wo[1:], src))
