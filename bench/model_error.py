@@ -9,8 +9,9 @@ observations that `freq` fits:
 - the brute-force oracle (`oracles.ggx_radiance`: Mitsuba's principled BSDF
   without its extras, integrated over every pixel of the environment map):
   what the renderer's noise and the observation extraction leave;
-- `freq`'s own model (`optimise.forward`, the config's lobe, weight per view
-  and diffuse term, the light at each degree of ``--lmax``).
+- `freq`'s own model (`optimise.forward`, the config's lobe, weight per view,
+  diffuse term and point sources, the light at each degree of ``--lmax``;
+  ``--no-point-sources``: all of the map through the SH).
 
 Error is the weighted L1 distance over the sample's observations relative to
 the observations' weighted L1 norm. Beside them: the class's share of the
@@ -23,7 +24,7 @@ constrain its lobe, the model cannot reproduce it.
     python bench/model_error.py                                   # the default run's captures
     FREQBRDF_RESULTS=/path/to/results python bench/model_error.py --captures sphere/sunny --lmax 20 36
 
-Writes ``bench/out/model_error.tsv``.
+Writes ``bench/out/model_error.tsv`` (``model_error_no_point_sources.tsv`` with that flag).
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ from freqbrdf import optimise as op  # noqa: E402
 from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf  # noqa: E402
 from freqbrdf.brdf import TEXTURES  # noqa: E402
 from freqbrdf.io import read_exr  # noqa: E402
-from freqbrdf.light import irradiance, light_quadrature  # noqa: E402
+from freqbrdf.light import irradiance  # noqa: E402
 from freqbrdf.metrics import parameter_error_map, pearson  # noqa: E402
 
 CAPTURES = ("sphere/studio", "sphere/sunny", "torus/studio", "torus/sunny")
@@ -65,8 +66,8 @@ def relative_l1(prediction: np.ndarray, observed: np.ndarray, weight: np.ndarray
     return float((w * np.abs(prediction - observed)).sum() / (w * np.abs(observed)).sum())
 
 
-def capture_rows(capture: str, settings: op.OptimiseSettings, lmaxes: list[int], sample: int,
-                 rng: np.random.Generator) -> list[dict]:
+def capture_rows(capture: str, settings: op.OptimiseSettings, lmaxes: list[int], point_sources: dict | None,
+                 sample: int, rng: np.random.Generator) -> list[dict]:
     obj, env = capture.split("/")
     obs = read_observations(RESULTS / "observations" / obj / env / "gt")
     texel, seen = obs.texels.texel, obs.observed
@@ -80,8 +81,10 @@ def capture_rows(capture: str, settings: op.OptimiseSettings, lmaxes: list[int],
     x = op.pack_params(truth, problem.n_texels)
     models = {}
     for lmax in lmaxes:
-        light = op.light_terms(truth["roughness"], problem, True, light_quadrature(envmap, lmax), settings.workers)
-        models[lmax] = op.forward(x, problem, light, True, *op.model_tables(settings, "freq", lmax))
+        quadrature = op.model_light(envmap, obs, "freq", lmax, point_sources)
+        light = op.light_terms(truth["roughness"], problem, True, quadrature, settings.workers)
+        models[lmax] = op.forward(x, problem, light, True, *op.model_tables(settings, "freq", lmax),
+                                  op.point_terms(problem, quadrature.sources, True))
     frame = np.stack([obs.texels.tangent, obs.texels.bitangent, obs.texels.normal], axis=1)
     metal, rough = truth["metallic"] > 0.5, truth["roughness"]
     rows = [{"capture": capture, "class": "all", "share": 1.0, "entropy": round(float(entropy[seen].mean()), 3),
@@ -113,17 +116,20 @@ def main() -> None:
     parser.add_argument("--sample", type=int, default=40, help="texels per class (the oracle costs ~1 s per texel)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--no-point-sources", action="store_true", help="the whole map through the SH")
     args = parser.parse_args()
     config = yaml.safe_load((REPO / "config" / "config.yaml").read_text())["optimise"]
     settings = op.OptimiseSettings.from_config(config, workers=args.workers)
     lmaxes = args.lmax or [config["lmax"]]
     rng = np.random.default_rng(args.seed)
-    rows = [row for capture in args.captures for row in capture_rows(capture, settings, lmaxes, args.sample, rng)]
+    point_sources = None if args.no_point_sources else config["point_sources"]
+    rows = [row for capture in args.captures
+            for row in capture_rows(capture, settings, lmaxes, point_sources, args.sample, rng)]
     columns = list(dict.fromkeys(key for row in rows for key in row))
     OUT.mkdir(parents=True, exist_ok=True)
     lines = ["\t".join(columns)] + ["\t".join(str(row.get(c, "")) for c in columns) for row in rows]
-    (OUT / "model_error.tsv").write_text("\n".join(lines) + "\n")
-    print(f"written {OUT / 'model_error.tsv'}")
+    (OUT / f"model_error{'_no_point_sources' if args.no_point_sources else ''}.tsv").write_text("\n".join(lines) + "\n")
+    print("written", OUT / f"model_error{'_no_point_sources' if args.no_point_sources else ''}.tsv")
 
 
 if __name__ == "__main__":

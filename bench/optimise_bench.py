@@ -98,6 +98,9 @@ SWEEP = {
     "lr 0.05, tv 0.03, ggx lobe, principled, lmax 24": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx",
                                                          "diffuse": "principled", "lmax": 24},
     "lr 0.05, tv 0.03, ggx lobe, albedo": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx", "view_weight": "albedo"},
+    **{f"lr 0.05, tv 0.03, ggx lobe, principled, point sources {r:g} deg": {
+        "lr": 0.05, "tv_weight": 0.03, "lobe": "ggx", "diffuse": "principled",
+        "point_sources": {"max_radius_deg": r, "min_radiance": 20.0}} for r in (2.0, 3.0, 5.0)},
     "lr 0.05, tv 0.03, ggx lobe, albedo, principled": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx",
                                                        "view_weight": "albedo", "diffuse": "principled"},
 }
@@ -158,12 +161,13 @@ def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> di
             "irradiance": irradiance(env, normal), "source": "synthetic"}
 
 
-def optimise_capture(data: dict, method: str, init: dict | None, lmax: int = LMAX, **settings) -> tuple[dict, np.ndarray]:
-    from freqbrdf.light import light_quadrature
-    from freqbrdf.optimise import OptimiseSettings, optimise
+def optimise_capture(data: dict, method: str, init: dict | None, lmax: int = LMAX, point_sources: dict | None = None,
+                     **settings) -> tuple[dict, np.ndarray]:
+    """`optimise` on a loaded capture, its light as the rule builds it (`model_light`)."""
+    from freqbrdf.optimise import OptimiseSettings, model_light, optimise
 
-    return optimise(data["obs"], data["irradiance"], light_quadrature(data["envmap"], lmax), init, method,
-                    OptimiseSettings(**settings))
+    light = model_light(data["envmap"], data["obs"], method, lmax, point_sources)
+    return optimise(data["obs"], data["irradiance"], light, init, method, OptimiseSettings(**settings))
 
 
 def run_timing(name: str) -> dict:

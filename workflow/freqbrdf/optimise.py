@@ -20,6 +20,12 @@ metallic m, all in [0, 1]; ``alpha = max(r^2, 1e-3)`` as in Mitsuba's
   dependence of the principled BSDF's diffuse lobe; ``view_weight="albedo"`` replaces
   ``F G1m`` by GGX's directional albedo (both: :func:`freqbrdf.lobes.view_table`).
 
+Beyond the paper, the map's compact bright sources can leave ``Lg`` (`model_light`,
+:func:`freqbrdf.light.extract_point_sources`): each adds the exact GGX microfacet term
+``D G1(theta_i) G1m F(h.w_o) P / (4 cos theta_o)`` of its direction and power ``P`` to the
+specular part (`point_terms`, ``freqbrdf.kernels._point_source``), which the SH at degree l*
+would blur.
+
 ``Lg`` depends on alpha, so it is refitted every ``refit_every`` iterations
 (for the texels whose roughness moved by more than ``refit_tolerance``)
 and held constant in between (no gradient through the refit, as in the
@@ -280,12 +286,18 @@ def estimate_light(
     ``min_radiance``: `freqbrdf.light.extract_point_sources`) and no pre-filter, the map's
     compact bright sources leave the SH light and ride along as ``LightQuadrature.sources``;
     the irradiance is always the whole map's."""
+    return model_light(envmap, obs, method, lmax, point_sources), irradiance(envmap, obs.texels.normal)
+
+
+def model_light(
+    envmap: np.ndarray, obs: Observations, method: str, lmax: int, point_sources: Mapping[str, float] | None = None,
+) -> LightQuadrature:
+    """The light of `estimate_light` without the irradiance."""
     prefilter = obs.a_prime if get_method(method).prefiltered else 0.0
-    e = irradiance(envmap, obs.texels.normal)
     if prefilter or not point_sources or not point_sources["max_radius_deg"]:
-        return light_quadrature(envmap, lmax, prefilter=prefilter), e
+        return light_quadrature(envmap, lmax, prefilter=prefilter)
     residual, sources = extract_point_sources(envmap, point_sources["max_radius_deg"], point_sources["min_radiance"])
-    return dataclasses.replace(light_quadrature(residual, lmax), sources=sources), e
+    return dataclasses.replace(light_quadrature(residual, lmax), sources=sources)
 
 
 def point_terms(problem: Problem, sources: PointSources | None, shadowing: bool) -> tuple[np.ndarray, np.ndarray] | None:
