@@ -81,6 +81,9 @@ class LightQuadrature:
     polar : numpy.ndarray
         Shape ``(M, n_rings, lmax + 1)``, float32: ``Theta_lm`` at each ring
         (0 where ``l < |m|``).
+    sources : PointSources, optional
+        Sources taken out of the map before the quadrature (`extract_point_sources`),
+        which the estimator adds as points; None: the whole map is in the nodes.
     """
 
     lmax: int

@@ -293,9 +293,9 @@ def model_light(
     envmap: np.ndarray, obs: Observations, method: str, lmax: int, point_sources: Mapping[str, float] | None = None,
 ) -> LightQuadrature:
     """The light of `estimate_light` without the irradiance."""
-    prefilter = obs.a_prime if get_method(method).prefiltered else 0.0
-    if prefilter or not point_sources or not point_sources["max_radius_deg"]:
-        return light_quadrature(envmap, lmax, prefilter=prefilter)
+    prefiltered = get_method(method).prefiltered
+    if prefiltered or not point_sources or not point_sources["max_radius_deg"]:
+        return light_quadrature(envmap, lmax, prefilter=obs.a_prime if prefiltered else 0.0)
     residual, sources = extract_point_sources(envmap, point_sources["max_radius_deg"], point_sources["min_radiance"])
     return dataclasses.replace(light_quadrature(residual, lmax), sources=sources)
 
