@@ -850,6 +850,8 @@ def forward(x: np.ndarray, problem: Problem, light: np.ndarray, masking: bool,
     view : numpy.ndarray, optional
         The weights per view, specular and diffuse (:func:`freqbrdf.lobes.view_table`); default the paper's
         ``F(theta_o) G1(theta_o)`` and Lambertian diffuse term.
+    point : tuple of numpy.ndarray, optional
+        Point sources outside ``light`` (`point_terms`); default none.
 
     Returns
     -------
@@ -906,6 +908,8 @@ def loss_and_gradient(
     view : numpy.ndarray, optional
         The weights per view, specular and diffuse (:func:`freqbrdf.lobes.view_table`); default the paper's
         ``F(theta_o) G1(theta_o)`` and Lambertian diffuse term.
+    point : tuple of numpy.ndarray, optional
+        Point sources outside ``light`` (`point_terms`); default none.
 
     Returns
     -------
@@ -957,6 +961,8 @@ def grid_start(
     view : numpy.ndarray, optional
         The weights per view, specular and diffuse (:func:`freqbrdf.lobes.view_table`); default the paper's
         ``F(theta_o) G1(theta_o)`` and Lambertian diffuse term.
+    point : tuple of numpy.ndarray, optional
+        Point sources outside ``light`` (`point_terms`); default none.
 
     Returns
     -------
