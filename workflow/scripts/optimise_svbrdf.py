@@ -29,10 +29,9 @@ def main(smk, log):
              opt["lmax"], "a' = %.3f" % obs.a_prime if get_method(smk.wildcards.method).prefiltered else "none",
              len(light.directions), len(texels), time.perf_counter() - start)
     if light.sources is not None:
+        points = light.sources.power.sum()
         log.info("%d point sources outside the SH light (optimise.point_sources: %s), %.1f%% of the map's power",
-                 len(light.sources.power), opt["point_sources"],
-                 100.0 * light.sources.power.sum() / max(float(np.sum(light.sources.power))
-                                                          + float(np.sum(light.weighted_radiance)), 1e-30))
+                 len(light.sources.power), opt["point_sources"], 100.0 * points / (points + light.weighted_radiance.sum()))
     params, curve = optimise(obs, e, light, init=init, method=smk.wildcards.method, settings=settings)
     log.info("%s: %d %s in %.1f s, loss %.4g -> %.4g", smk.wildcards.method, len(curve),
              "Adam steps" if settings.solver == "adam" else "LM sweeps",
