@@ -285,7 +285,8 @@ def _model(m, base, e_pi, r0_dielectric, work, c):  # pragma: no cover - compile
 
 
 @numba.njit(cache=True, inline="always")
-def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, texel):  # pragma: no cover - compiled
+def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src,
+                texel):  # pragma: no cover - compiled
     """Per channel of pair n, the specular term split as ``R0 work[0] + work[1]``, in ``work[2]``,
     ``work[3]`` their derivatives in alpha, in ``work[4]`` and ``work[5]`` the diffuse factor d and
     its derivative.
@@ -451,13 +452,14 @@ def l1_loss_gradient(
     grad = np.empty((x.shape[0], 5))
     loss = np.empty(x.shape[0])
     _l1_loss_gradient(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
-                      _table(lobe, light), _view(view), *_point(point, start), grad, loss, np.empty((0, 3)) if model is None else model)
+                      _table(lobe, light), _view(view), *_point(point, start), grad, loss,
+                      np.empty((0, 3)) if model is None else model)
     return loss, grad
 
 
 @numba.njit(parallel=True, cache=True)
-def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src, r_grid,
-                 m_grid, max_pairs, out):  # pragma: no cover - compiled
+def _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src,
+                 r_grid, m_grid, max_pairs, out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
     for blk in numba.prange((n_tex + _TEXELS - 1) // _TEXELS):
@@ -537,14 +539,14 @@ def grid_search(
     """
     out = np.zeros((start.shape[0] - 1, 5))
     _grid_search(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, _table(lobe, light),
-                 _view(view), *_point(point, start), np.asarray(roughness, dtype=np.float64), np.asarray(metallic, dtype=np.float64),
-                 int(np.diff(start).max(initial=0)), out)
+                 _view(view), *_point(point, start), np.asarray(roughness, dtype=np.float64),
+                 np.asarray(metallic, dtype=np.float64), int(np.diff(start).max(initial=0)), out)
     return out
 
 
 @numba.njit(cache=True, inline="always")
-def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src,
-                nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
+def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+                wo, src, nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
     """Objective of texel s at parameters ``xs`` (5,): its L1 data term times ``data_scale`` plus
     ``tv_scale`` times the TV of its edges, the neighbours held at ``x`` (S, 5); ``f``, ``fd``
     (L,) and ``work`` (6, 3) are scratch."""
@@ -597,8 +599,8 @@ def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
-def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src,
-                 nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h,
+def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+                 wo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h,
                  g):  # pragma: no cover - compiled
     """Texel s's objective at ``x[s]``, and in ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton
     matrix and gradient of its reweighted quadratic (see `lm_sweep`); the rest is scratch."""
@@ -688,8 +690,8 @@ def _predicted_gain(h, g, step):  # pragma: no cover - compiled
 
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
-def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src,
-              nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
+def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+              wo, src, nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
               cost_out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n = texels.shape[0]
@@ -706,8 +708,8 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
         for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
             s = texels[i]
             cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                r0_dielectric, lobe, view, wo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor,
-                                f, fd, work, h, g)
+                                r0_dielectric, lobe, view, wo, src, nb_start, nb, data_scale, tv_scale, irls_floor,
+                                tv_floor, f, fd, work, h, g)
             cost_out[i] = cost
             lam_s = lam[s]
             for _ in range(tries):
@@ -721,7 +723,8 @@ def _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                 for q in range(5):
                     trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
                 new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                  r0_dielectric, lobe, view, wo, src, nb_start, nb, x, data_scale, tv_scale, f, fd, work)
+                                  r0_dielectric, lobe, view, wo, src, nb_start, nb, x, data_scale, tv_scale, f, fd,
+                                  work)
                 if new < cost:
                     x[s, :] = trial
                     lam_s = max(lam_s * _LM_DOWN, _LM_MIN)
@@ -791,6 +794,6 @@ def lm_sweep(
     """
     cost = np.empty(texels.shape[0])
     _lm_sweep(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric,
-              _table(lobe, light), _view(view), *_point(point, start), nb_start, nb, float(data_scale), float(tv_scale), lower, upper,
-              float(irls_floor), float(tv_floor), lam, int(tries), cost)
+              _table(lobe, light), _view(view), *_point(point, start), nb_start, nb, float(data_scale), float(tv_scale),
+              lower, upper, float(irls_floor), float(tv_floor), lam, int(tries), cost)
     return cost

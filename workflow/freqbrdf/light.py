@@ -118,13 +118,14 @@ def extract_point_sources(
 ) -> tuple[np.ndarray, PointSources]:
     """Split an environment map into compact bright sources and the rest.
 
-    The pixels whose luminance exceeds ``min_radiance`` times the map's mean
-    luminance form 8-connected components; those whose solid angle is that of
-    a cap of angular radius at most ``max_radius_deg`` become sources. Each
-    source's pixels are set to the mean radiance of the ring of pixels around
-    it (the background), and what lay above the background is the source:
-    its power is that excess integrated over solid angle and its direction
-    the excess-weighted mean direction. The map's total power is conserved
+    The pixels whose brightness (radiance averaged over channels) exceeds
+    ``min_radiance`` times the map's mean brightness over the sphere form
+    8-connected components; those whose solid angle is that of a cap of
+    angular radius at most ``max_radius_deg`` become sources. Each source's
+    pixels are set to the mean radiance of the ring of pixels around it (the
+    background), and what lay above the background is the source: its power
+    is that excess integrated over solid angle and its direction the
+    excess-weighted mean direction. The map's total power is conserved
     (residual plus sources).
 
     Parameters
@@ -134,7 +135,7 @@ def extract_point_sources(
     max_radius_deg : float
         Largest angular radius of a source, degrees (0: no sources).
     min_radiance : float
-        Threshold on luminance, in units of the map's mean luminance (> 1).
+        Threshold on brightness, in units of the map's mean brightness (> 1).
 
     Returns
     -------
@@ -155,9 +156,9 @@ def extract_point_sources(
     h, w, n_ch = env.shape
     residual = env.copy()
     omega = np.broadcast_to(equirect_solid_angles(h, w)[:, None], (h, w))
-    luminance = env.mean(axis=2)
-    mean = float((luminance * omega).sum() / omega.sum())
-    labels, count = ndimage.label(luminance > min_radiance * mean, structure=np.ones((3, 3)))
+    brightness = env.mean(axis=2)
+    mean = float((brightness * omega).sum() / omega.sum())
+    labels, count = ndimage.label(brightness > min_radiance * mean, structure=np.ones((3, 3)))
     max_omega = 2.0 * np.pi * (1.0 - np.cos(np.radians(max_radius_deg)))
     directions, power = [], []
     dirs = equirect_directions(h, w)

@@ -283,8 +283,8 @@ def estimate_light(
     """The light of a method's model at degree ``lmax`` and the irradiance at the texel normals:
     the map as it is, or low-passed by the views' band limit a' for a ``prefiltered`` method
     (``freq_paper``: paper section 4.2). With ``point_sources`` (``max_radius_deg``,
-    ``min_radiance``: `freqbrdf.light.extract_point_sources`) and no pre-filter, the map's
-    compact bright sources leave the SH light and ride along as ``LightQuadrature.sources``;
+    ``min_radiance``: `freqbrdf.light.extract_point_sources`), for a method that is not
+    pre-filtered, the map's compact bright sources leave the SH light and ride along as ``LightQuadrature.sources``;
     the irradiance is always the whole map's."""
     return model_light(envmap, obs, method, lmax, point_sources), irradiance(envmap, obs.texels.normal)
 
@@ -300,7 +300,9 @@ def model_light(
     return dataclasses.replace(light_quadrature(residual, lmax), sources=sources)
 
 
-def point_terms(problem: Problem, sources: PointSources | None, shadowing: bool) -> tuple[np.ndarray, np.ndarray] | None:
+def point_terms(
+    problem: Problem, sources: PointSources | None, shadowing: bool,
+) -> tuple[np.ndarray, np.ndarray] | None:
     """The kernels' ``point`` argument (`freqbrdf.kernels.l1_loss_gradient`) for ``sources``: each
     pair's view and, per observed texel (internal order) and source, its direction in the
     texel's frame, ``tan^2 theta_i`` (0 without ``shadowing``: G1 = 1) and its power.
