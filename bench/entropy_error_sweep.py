@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from freqbrdf.artefacts import read_observations, read_sh_fit, read_svbrdf
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.metrics import parameter_error_map, pearson
-from freqbrdf.spectrum import default_grid, residual_width, spectrum_search
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.report.metrics import parameter_error_map, pearson
+from freqbrdf.estimate.spectrum import default_grid, residual_width, spectrum_search
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = Path(os.environ.get("FREQBRDF_RESULTS", REPO / "results"))

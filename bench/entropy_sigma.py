@@ -28,9 +28,10 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import read_svbrdf
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.entropy_agreement import likelihood_entropy, pearson
-from freqbrdf.metrics import parameter_error_map
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.report.metrics import pearson
+from freqbrdf.studies.entropy_agreement import likelihood_entropy
+from freqbrdf.report.metrics import parameter_error_map
 
 SIGMAS = (0.3, 0.1, 0.03, 0.01, 0.003, 0.001)
 

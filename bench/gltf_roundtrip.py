@@ -46,13 +46,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     from freqbrdf.artefacts import read_svbrdf
-    from freqbrdf.cameras import Cameras, cameras_from_json
+    from freqbrdf.scene.cameras import Cameras, cameras_from_json
     from freqbrdf.config import derived_seed
-    from freqbrdf.gltf import read_glb
-    from freqbrdf.io import read_exr, read_json, read_png
-    from freqbrdf.meshes import write_ply
-    from freqbrdf.mitsuba_setup import setup_mitsuba
-    from freqbrdf.render import relit_views
+    from freqbrdf.export.gltf import read_glb
+    from freqbrdf.util.io import read_exr, read_json, read_png
+    from freqbrdf.scene.ply import write_ply
+    from freqbrdf.util.mitsuba_setup import setup_mitsuba
+    from freqbrdf.scene.render import relit_views
 
     config = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
     for extra in args.configfile:

@@ -38,10 +38,14 @@ sys.path.insert(0, str(REPO / "tests"))  # the recovery test's texels and views,
 import oracles  # noqa: E402
 from test_light import ROUGHNESS, observations, oracle_capture  # noqa: E402
 
-from freqbrdf import light as lt  # noqa: E402
-from freqbrdf import optimise as op  # noqa: E402
-from freqbrdf.io import read_exr  # noqa: E402
-from freqbrdf.lobes import lobe_table, view_table  # noqa: E402
+from freqbrdf.estimate import light as lt  # noqa: E402
+from freqbrdf.estimate.optimise.kernels import KernelModel  # noqa: E402
+from freqbrdf.estimate.optimise.model import forward, light_terms  # noqa: E402
+from freqbrdf.estimate.optimise.problem import build_problem, pack_params  # noqa: E402
+from freqbrdf.estimate.optimise.settings import OptimiseSettings  # noqa: E402
+from freqbrdf.estimate.optimise.solve import optimise  # noqa: E402
+from freqbrdf.util.io import read_exr  # noqa: E402
+from freqbrdf.sphere.lobes import lobe_table, view_table  # noqa: E402
 
 MODELS = (("gaussian", "paper", "lambert"), ("ggx", "paper", "lambert"), ("ggx", "paper", "principled"),
           ("ggx", "albedo", "principled"))  # (lobe, view weight, diffuse)
@@ -51,10 +55,9 @@ def model_ratios(env: np.ndarray, capture: dict, truth: dict, lobe: str, view_we
                  diffuse: str) -> list[dict]:
     """Median of model / GGX radiance (channel sums) at the true parameters, per roughness and
     metallic, over near-normal (cos theta_o > 0.7) and grazing (< 0.4) observations."""
-    problem = op.build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
-    light = op.light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 20))
-    model = op.forward(op.pack_params(truth, problem.n_texels), problem, light, True, lobe_table(lobe, 20),
-                       view_table(view_weight, diffuse, lobe, 20))
+    problem = build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
+    light = light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 20))
+    model = forward(pack_params(truth, problem.n_texels), problem, light, KernelModel(True, lobe_table(lobe, 20), view_table(view_weight, diffuse, lobe, 20)))
     seen, cos_o = capture["weight"] > 0, capture["wo_local"][..., 2]
     ratio = model.sum(-1) / np.maximum(capture["radiance"].sum(-1), 1e-12)
     rows = []
@@ -85,9 +88,9 @@ def main() -> None:
         for lobe, view_weight, diffuse in MODELS:
             ratios += [{"env": name} | row for row in model_ratios(env, capture, truth, lobe, view_weight, diffuse)]
             print(ratios[-1], flush=True)
-            est, _ = op.optimise(observations(capture), lt.irradiance(env, capture["frame"][:, 2]),
+            est, _ = optimise(observations(capture), lt.irradiance(env, capture["frame"][:, 2]),
                                  lt.light_quadrature(env, 20), None, "freq",
-                                 op.OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0, lobe=lobe,
+                                 OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0, lobe=lobe,
                                                      view_weight=view_weight, diffuse=diffuse))
             for r in ROUGHNESS:
                 for metallic in (0.0, 1.0):

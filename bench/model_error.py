@@ -44,12 +44,15 @@ sys.path.insert(0, str(REPO / "tests"))  # the brute-force GGX oracle
 
 import oracles  # noqa: E402
 
-from freqbrdf import optimise as op  # noqa: E402
+from freqbrdf.estimate.optimise.kernels import KernelModel  # noqa: E402
+from freqbrdf.estimate.optimise.model import forward, light_terms, model_light, model_tables, point_terms  # noqa: E402
+from freqbrdf.estimate.optimise.problem import build_problem, pack_params  # noqa: E402
+from freqbrdf.estimate.optimise.settings import OptimiseSettings  # noqa: E402
 from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf  # noqa: E402
-from freqbrdf.brdf import TEXTURES  # noqa: E402
-from freqbrdf.io import read_exr  # noqa: E402
-from freqbrdf.light import irradiance  # noqa: E402
-from freqbrdf.metrics import parameter_error_map, pearson  # noqa: E402
+from freqbrdf.sphere.brdf import TEXTURES  # noqa: E402
+from freqbrdf.util.io import read_exr  # noqa: E402
+from freqbrdf.estimate.light import irradiance  # noqa: E402
+from freqbrdf.report.metrics import parameter_error_map, pearson  # noqa: E402
 
 CAPTURES = ("sphere/studio", "sphere/sunny", "torus/studio", "torus/sunny")
 ROUGHNESS_EDGES = (0.0, 0.2, 0.356, 0.6, 1.01)
@@ -66,7 +69,7 @@ def relative_l1(prediction: np.ndarray, observed: np.ndarray, weight: np.ndarray
     return float((w * np.abs(prediction - observed)).sum() / (w * np.abs(observed)).sum())
 
 
-def capture_rows(capture: str, settings: op.OptimiseSettings, lmaxes: list[int], point_sources: dict | None,
+def capture_rows(capture: str, settings: OptimiseSettings, lmaxes: list[int], point_sources: dict | None,
                  sample: int, rng: np.random.Generator) -> list[dict]:
     obj, env = capture.split("/")
     obs = read_observations(RESULTS / "observations" / obj / env / "gt")
@@ -77,14 +80,14 @@ def capture_rows(capture: str, settings: op.OptimiseSettings, lmaxes: list[int],
     error = flat(parameter_error_map(dict(truth_maps), dict(estimate)), texel)
     entropy = flat(read_entropy(RESULTS / "entropy" / obj / env / "gt").atlas, texel)
     envmap = read_exr(RESULTS / "envs" / f"{env}.exr")
-    problem = op.build_problem(obs, irradiance(envmap, obs.texels.normal), "float64")
-    x = op.pack_params(truth, problem.n_texels)
+    problem = build_problem(obs, irradiance(envmap, obs.texels.normal), "float64")
+    x = pack_params(truth, problem.n_texels)
     models = {}
     for lmax in lmaxes:
-        quadrature = op.model_light(envmap, obs, "freq", lmax, point_sources)
-        light = op.light_terms(truth["roughness"], problem, True, quadrature, settings.workers)
-        models[lmax] = op.forward(x, problem, light, True, *op.model_tables(settings, "freq", lmax),
-                                  op.point_terms(problem, quadrature.sources, True))
+        quadrature = model_light(envmap, obs, "freq", lmax, point_sources)
+        light = light_terms(truth["roughness"], problem, True, quadrature, settings.workers)
+        models[lmax] = forward(x, problem, light, KernelModel(True, *model_tables(settings, "freq", lmax),
+                                                              point_terms(problem, quadrature.sources, True)))
     frame = np.stack([obs.texels.tangent, obs.texels.bitangent, obs.texels.normal], axis=1)
     metal, rough = truth["metallic"] > 0.5, truth["roughness"]
     rows = [{"capture": capture, "class": "all", "share": 1.0, "entropy": round(float(entropy[seen].mean()), 3),
@@ -119,7 +122,7 @@ def main() -> None:
     parser.add_argument("--no-point-sources", action="store_true", help="the whole map through the SH")
     args = parser.parse_args()
     config = yaml.safe_load((REPO / "config" / "config.yaml").read_text())["optimise"]
-    settings = op.OptimiseSettings.from_config(config, workers=args.workers)
+    settings = OptimiseSettings.from_config(config, workers=args.workers)
     lmaxes = args.lmax or [config["lmax"]]
     rng = np.random.default_rng(args.seed)
     point_sources = None if args.no_point_sources else config["point_sources"]

@@ -1,4 +1,4 @@
-"""Time, peak memory and accuracy of the gradient-descent estimator (freqbrdf.optimise).
+"""Time, peak memory and accuracy of the gradient-descent estimator (freqbrdf.estimate.optimise).
 
 Timing cases (each in a fresh Python process, so its peak RSS is its own):
 `optimise` on 256x256 texels x 24 views, 150 Adam iterations, the light at degree
@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from freqbrdf.brdf import TEXTURES
+from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.methods import METHODS
 
 REPO = Path(__file__).resolve().parents[1]
@@ -109,8 +109,8 @@ SWEEP = {
 def load_capture(capture: str) -> dict | None:
     """Observations and irradiance of ``object/env`` (gt poses), or None if absent."""
     from freqbrdf.artefacts import read_observations
-    from freqbrdf.io import read_exr
-    from freqbrdf.light import irradiance
+    from freqbrdf.util.io import read_exr
+    from freqbrdf.estimate.light import irradiance
 
     obj, env = capture.split("/")
     directory = RESULTS / "observations" / obj / env / "gt"
@@ -128,7 +128,8 @@ def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> di
     """Observations shaped like the real ones: random normals, 24 distant cameras on the
     upper hemisphere, a pair observed when the texel faces the camera (10% dropped as occluded),
     a few soft lamps over a sky gradient, radiance of a diffuse plus a glossy lobe."""
-    from freqbrdf import sh, shfit
+    from freqbrdf.sphere import sampling
+    from freqbrdf.estimate import shfit
     from freqbrdf.artefacts import Observations
 
     rng = np.random.default_rng(seed)
@@ -139,7 +140,7 @@ def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> di
     tangent = np.cross(helper, normal)
     tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
     frame = np.stack([tangent, np.cross(normal, tangent), normal], axis=1)
-    wo = np.einsum("tij,kj->tki", frame, sh.fibonacci_hemisphere(n_views))
+    wo = np.einsum("tij,kj->tki", frame, sampling.fibonacci_hemisphere(n_views))
     weight = np.clip(wo[..., 2], 0.0, None) * (rng.random((n_tex, n_views)) > 0.1)
     wr = np.einsum("tji,tkj->tki", frame, shfit.mirror_directions(wo))
     lamps = rng.normal(size=(4, 3))
@@ -149,9 +150,9 @@ def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> di
     def light(d: np.ndarray) -> np.ndarray:
         return 0.3 + 0.2 * d[..., 1:2] + np.exp((d @ lamps.T - 1.0) / 0.05) @ colours
 
-    from freqbrdf.light import irradiance
+    from freqbrdf.estimate.light import irradiance
 
-    env = light(sh.equirect_directions(128, 256))
+    env = light(sampling.equirect_directions(128, 256))
     kd = rng.uniform(0, 1, (n_tex, 1, 3))
     radiance = (0.5 * kd + 0.3 * light(wr)) * (weight > 0)[..., None]
     f32 = np.float32
@@ -164,7 +165,9 @@ def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> di
 def optimise_capture(data: dict, method: str, init: dict | None, lmax: int = LMAX, point_sources: dict | None = None,
                      **settings) -> tuple[dict, np.ndarray]:
     """`optimise` on a loaded capture, its light as the rule builds it (`model_light`)."""
-    from freqbrdf.optimise import OptimiseSettings, model_light, optimise
+    from freqbrdf.estimate.optimise.model import model_light
+    from freqbrdf.estimate.optimise.settings import OptimiseSettings
+    from freqbrdf.estimate.optimise.solve import optimise
 
     light = model_light(data["envmap"], data["obs"], method, lmax, point_sources)
     return optimise(data["obs"], data["irradiance"], light, init, method, OptimiseSettings(**settings))

@@ -24,14 +24,14 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from freqbrdf.cameras import cameras_from_json
+from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.config import derived_seed
 from freqbrdf.artefacts import read_svbrdf
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.io import read_exr, read_json, read_views
-from freqbrdf.metrics import relight_scores
-from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.render import relit_views
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.util.io import read_exr, read_json, read_views
+from freqbrdf.report.relight_metrics import relight_scores
+from freqbrdf.util.mitsuba_setup import setup_mitsuba
+from freqbrdf.scene.render import relit_views
 
 
 def variants(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray], min_roughness: float) -> dict[str, dict]:

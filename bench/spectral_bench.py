@@ -1,4 +1,4 @@
-"""Time and peak memory of the frequency-domain stage (freqbrdf.shfit, freqbrdf.spectrum).
+"""Time and peak memory of the frequency-domain stage (freqbrdf.estimate.shfit, freqbrdf.estimate.spectrum).
 
 Cases (each runs in a fresh Python process so its peak RSS is its own):
 
@@ -51,7 +51,8 @@ CASES = {
 
 def observations(n_tex: int, n_views: int, seed: int = 0) -> tuple[np.ndarray, ...]:
     """Synthetic (wo_local, weight, radiance, incoming) shaped like the observation stage's."""
-    from freqbrdf import sh, shfit
+    from freqbrdf.sphere import sampling
+    from freqbrdf.estimate import shfit
 
     rng = np.random.default_rng(seed)
     normal = rng.normal(size=(n_tex, 3))
@@ -60,7 +61,7 @@ def observations(n_tex: int, n_views: int, seed: int = 0) -> tuple[np.ndarray, .
     tangent = np.cross(helper, normal)
     tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
     frame = np.stack([tangent, np.cross(normal, tangent), normal], axis=1)  # (T, 3, 3) rows = local axes
-    cameras = sh.fibonacci_hemisphere(n_views)  # distant cameras, world +Y up
+    cameras = sampling.fibonacci_hemisphere(n_views)  # distant cameras, world +Y up
     wo_local = np.einsum("tij,kj->tki", frame, cameras)
     weight = np.clip(wo_local[..., 2], 0.0, None) * (rng.random((n_tex, n_views)) > 0.1)
     wr_world = np.einsum("tji,tkj->tki", frame, shfit.mirror_directions(wo_local))
@@ -89,7 +90,7 @@ def spectra_inputs(n_tex: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 
 def run_case(name: str) -> dict:
     """Run one case in this process; return its measurements."""
-    from freqbrdf import shfit, spectrum
+    from freqbrdf.estimate import shfit, spectrum
 
     kind, workers, solver, penalise_dc = CASES[name]
     if kind == "search":

@@ -1,4 +1,4 @@
-"""Time of the entropy-guided view ranking (freqbrdf.view_selection) on a real capture.
+"""Time of the entropy-guided view ranking (freqbrdf.studies.view_selection) on a real capture.
 
 Cases, on the observations of ``RESULTS/observations/OBJECT/ENV/gt`` (its 24 views
 with images give the posterior) and the default 100 candidate poses of rule
@@ -33,18 +33,18 @@ import pandas as pd
 import yaml
 
 from freqbrdf.artefacts import read_observations, sample_texels
-from freqbrdf.cameras import Cameras, hemisphere_rig, intrinsics
-from freqbrdf.io import read_exr
-from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.observations import band_limit_parameter, band_limited_envmap
-from freqbrdf.raycast import mesh_scene, occlusion_test
-from freqbrdf.view_selection import (
+from freqbrdf.scene.cameras import Cameras, hemisphere_rig, intrinsics
+from freqbrdf.util.io import read_exr
+from freqbrdf.util.mitsuba_setup import setup_mitsuba
+from freqbrdf.capture.observations import band_limit_parameter, band_limited_envmap
+from freqbrdf.scene.raycast import mesh_scene, occlusion_test
+from freqbrdf.studies.view_selection import (
     SelectionModel,
-    capture_and_candidates,
     greedy_selection,
     rank_views,
     set_threads,
 )
+from freqbrdf.studies.candidates import capture_and_candidates
 
 REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / "bench" / "out"

@@ -3,7 +3,7 @@
 import math
 from pathlib import Path
 
-from freqbrdf.brdf import TEXTURES
+from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.config import derived_seed, size_factor
 from freqbrdf.dependencies import script_modules
 from freqbrdf.methods import FREQUENCY_RULES, METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
@@ -110,7 +110,7 @@ def library(script):
     """Source files of the library modules that rule script ``workflow/scripts/{script}.py``
     imports (transitively, `freqbrdf.dependencies`); declaring them as inputs makes
     an edit to the library rerun exactly the rules that use it."""
-    return [str(LIBRARY / f"{module}.py") for module in script_modules(SCRIPTS / f"{script}.py", LIBRARY)]
+    return [str(LIBRARY / path) for path in script_modules(SCRIPTS / f"{script}.py", LIBRARY)]
 
 
 def object_files(name):

@@ -1,4 +1,4 @@
-from freqbrdf.capture_io import source_checksum
+from freqbrdf.capture.exchange import source_checksum
 
 
 rule export_capture:
@@ -56,7 +56,7 @@ rule import_capture:
 
 rule env_orientation:
     """Scores the imported environment map over rotations about the up axis against
-    the training views (freqbrdf.orientation); warns, naming the best rotation, when
+    the training views (freqbrdf.capture.orientation); warns, naming the best rotation, when
     the given one is clearly worse, and applies the best one with `align_env: true`."""
     input:
         capture="results/imports/{object}/train",

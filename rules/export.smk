@@ -1,7 +1,7 @@
 # Exports people can use outside the pipeline (issue 20): every estimate and
 # ground truth as binary glTF, the environment maps as Radiance .hdr, and per
 # capture an HTML page showing them side by side under any environment.
-from freqbrdf.viewer import WEB_ASSETS, WEB_DIR
+from freqbrdf.export.viewer import WEB_ASSETS, WEB_DIR
 
 TRUTH_GLTF = "truth"  # node and material name of the ground truth in .glb files and the viewer
 

@@ -2,7 +2,7 @@
 # These rules read finished outputs only and take no config that upstream rules
 # use, so changing a metric setting reruns metrics, then these, and nothing else.
 
-from freqbrdf.tables import SUMMARY_KEYS as TABLES  # stems of the table files: the paper's Tables 1-6 and the claims
+from freqbrdf.report.tables.summary import SUMMARY_KEYS as TABLES  # stems of the table files: the paper's Tables 1-6 and the claims
 
 # Methods with a logged MSE curve (differentiable rendering) and those shown as points.
 CONVERGENCE_CURVES = [m for m in METHODS if METHOD_REGISTRY[m].rule == "mitsuba_svbrdf"]
@@ -45,7 +45,7 @@ rule tables:
         stress=list(STRESS),
         # Which of the paper's environments each of ours stands beside (Table 2).
         env_kinds={env: config["envs"][env]["kind"] for env in ENVS},
-        # what the report's landing summary says was run (freqbrdf.tables.run_facts)
+        # what the report's landing summary says was run (freqbrdf.report.tables.summary.run_facts)
         run={
             "seed": config["seed"],
             "objects": SYNTHETIC_OBJECTS,

@@ -1,7 +1,7 @@
 # Captures that break the model's assumptions (config stress_captures) and the benchmark
 # estimated from other pose sources (config poses.compare), scored apart from the paper's
 # tables: one page of tables and one figure (config/stress.yaml runs them).
-from freqbrdf.stress import ambiguity_pairs, stress_description, stress_reference
+from freqbrdf.studies.stress import ambiguity_pairs, stress_description, stress_reference
 
 OCCLUDED = [(o, e) for o, e in STRESS_CAPTURES if "occluder" in STRESS[o]]
 # The ambiguity pairs as ((object, env), (object, env)) captures.

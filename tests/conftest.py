@@ -9,7 +9,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="session")
 def mi():
-    from freqbrdf.mitsuba_setup import setup_mitsuba
+    from freqbrdf.util.mitsuba_setup import setup_mitsuba
 
     return setup_mitsuba("llvm_ad_rgb", threads=2)
 

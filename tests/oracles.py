@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from freqbrdf.brdf import R0_DIELECTRIC
-from freqbrdf.sh import equirect_directions, equirect_solid_angles, real_sh, sh_degrees
-from freqbrdf.validation import check_int, check_shape, lmax_of
+from freqbrdf.sphere.brdf import R0_DIELECTRIC
+from freqbrdf.sphere.sh import real_sh, sh_degrees
+from freqbrdf.sphere.sampling import equirect_directions, equirect_solid_angles
+from freqbrdf.util.validation import check_int, check_shape, lmax_of
 
 LOCAL_NORMAL = (0.0, 0.0, 1.0)
 
@@ -100,7 +101,7 @@ def irradiance_at_normals(env_coeffs: np.ndarray, normals: np.ndarray) -> np.nda
     ----------
     env_coeffs : numpy.ndarray
         Shape ``((lmax+1)**2, C)``: SH of the environment radiance in the frame
-        of ``normals`` (e.g. :func:`freqbrdf.sh.project_equirect`, world frame).
+        of ``normals`` (e.g. :func:`freqbrdf.sphere.sh.project_equirect`, world frame).
     normals : numpy.ndarray
         Shape ``(T, 3)``, surface normals.
 

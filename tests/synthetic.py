@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from freqbrdf import sh
+from freqbrdf.sphere import sampling, sh
 
 
 def upper_hemisphere(n: int) -> np.ndarray:
     """Fibonacci points on the local upper hemisphere (z = normal), (n, 3)."""
-    p = sh.fibonacci_hemisphere(n)  # about +Y
+    p = sampling.fibonacci_hemisphere(n)  # about +Y
     return np.stack([p[:, 0], -p[:, 2], p[:, 1]], axis=-1)
 
 
@@ -28,13 +28,13 @@ def filter_coeffs(coeffs: np.ndarray, alpha: float) -> np.ndarray:
 def rewrite_z_up(root, mesh, camera_axes: np.ndarray | None = None) -> None:
     """Rewrite an exchange-layout capture in ``root`` as a Z-up tool would hand it over.
 
-    The mesh (a `freqbrdf.meshes.Mesh`, Y-up) becomes ``mesh.obj`` in a Z-up
+    The mesh (a `freqbrdf.scene.meshes.Mesh`, Y-up) becomes ``mesh.obj`` in a Z-up
     world, without normals; the cameras of ``transforms_*.json`` are turned into
     that world and, with ``camera_axes`` (4, 4), re-expressed in other camera axes
     (``diag(1, -1, -1, 1)``: OpenCV's).
     """
-    from freqbrdf.capture_io import Y_UP_FROM_Z_UP
-    from freqbrdf.io import read_json, write_json
+    from freqbrdf.capture.exchange import Y_UP_FROM_Z_UP
+    from freqbrdf.util.io import read_json, write_json
 
     z_up = mesh.vertices @ Y_UP_FROM_Z_UP  # the inverse of the import's rotation
     lines = ["# Z-up, no normals: the import recomputes them"]

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from freqbrdf import artefacts as af
-from freqbrdf.io import read_json, write_exr, write_json
-from freqbrdf.observations import SurfaceTexels
+from freqbrdf.util.io import read_json, write_exr, write_json
+from freqbrdf.capture.observations import SurfaceTexels
 
 
 def surface_texels(n: int, resolution: int = 8) -> SurfaceTexels:

@@ -1,4 +1,4 @@
-"""Tests for freqbrdf.brdf (principled parameters <-> the model's lobes)."""
+"""Tests for freqbrdf.sphere.brdf (principled parameters <-> the model's lobes)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import oracles
-from freqbrdf import brdf
+from freqbrdf.sphere import brdf
 # principled parameters
 # --------------------------------------------------------------------------
 def test_principled_round_trip() -> None:

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from freqbrdf.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics, look_at, mitsuba_to_world, project
+from freqbrdf.scene.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics, look_at, mitsuba_to_world, project
 
 
 def test_look_at_is_rigid_and_opencv_oriented():

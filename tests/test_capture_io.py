@@ -5,10 +5,11 @@ import json
 import numpy as np
 import pytest
 
-from freqbrdf.capture_io import blender_transforms, cameras_from_blender, export_capture, import_capture
-from freqbrdf.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics
-from freqbrdf.io import read_json, write_exr, write_json, write_png
-from freqbrdf.meshes import make_mesh, read_ply, write_ply
+from freqbrdf.capture.exchange import blender_transforms, cameras_from_blender, export_capture, import_capture
+from freqbrdf.scene.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics
+from freqbrdf.util.io import read_json, write_exr, write_json, write_png
+from freqbrdf.scene.meshes import make_mesh
+from freqbrdf.scene.ply import read_ply, write_ply
 from synthetic import rewrite_z_up
 
 
@@ -166,7 +167,7 @@ def test_per_view_test_environments_are_imported(tmp_path):
     for k in range(3):
         write_exr(orb / f"test_env/{k:04d}.exr", np.full((4, 8, 3), k + 1.0))
     _import(orb, tmp_path / "out")
-    from freqbrdf.io import read_exr
+    from freqbrdf.util.io import read_exr
 
     assert read_exr(tmp_path / "out/test/envmaps/0002.exr").max() == 3.0
     assert not (tmp_path / "out/train/envmaps").exists()
@@ -178,7 +179,7 @@ def test_per_view_test_environments_are_imported(tmp_path):
 def test_the_source_checksum_follows_file_contents(tmp_path):
     import os
 
-    from freqbrdf.capture_io import source_checksum
+    from freqbrdf.capture.exchange import source_checksum
 
     orb = _orb(tmp_path / "orb")
     before = source_checksum(orb)
@@ -195,7 +196,7 @@ def test_the_source_checksum_follows_file_contents(tmp_path):
 
 
 def test_ground_truth_textures_are_checked(tmp_path):
-    from freqbrdf.capture_io import import_textures
+    from freqbrdf.capture.exchange import import_textures
 
     truth = tmp_path / "truth"
     truth.mkdir()
@@ -213,7 +214,7 @@ def test_ground_truth_textures_are_checked(tmp_path):
 
 
 def test_turn_envmap_rolls_whole_columns_and_fov_needs_a_centred_pinhole():
-    from freqbrdf.capture_io import pinhole_fov_deg, turn_envmap
+    from freqbrdf.capture.exchange import pinhole_fov_deg, turn_envmap
 
     env = np.arange(2 * 8 * 3, dtype=np.float32).reshape(2, 8, 3)
     np.testing.assert_array_equal(turn_envmap(env, 90.0), np.roll(env, 2, axis=1))

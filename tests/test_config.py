@@ -138,7 +138,7 @@ def test_size_factor_is_one_on_the_default_and_grows_with_the_work(repo, default
 
 
 def test_optimise_settings_follow_the_config(default):
-    from freqbrdf.optimise import OptimiseSettings, identifiable_roughness
+    from freqbrdf.estimate.optimise.settings import OptimiseSettings, identifiable_roughness
 
     opt = default["optimise"] | {"solver": "lm", "sweeps": 7, "sweep_refit_every": 3, "min_roughness": "auto",
                                  "lobe": "gaussian"}

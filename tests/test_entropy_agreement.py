@@ -3,13 +3,14 @@
 import numpy as np
 import pytest
 
-from freqbrdf import entropy_agreement as ea
+from freqbrdf.studies import entropy_agreement as ea
 from freqbrdf.artefacts import Observations
-from freqbrdf.colour import LUMINANCE
-from freqbrdf.light import irradiance, light_quadrature
-from freqbrdf.meshes import make_mesh, write_ply
-from freqbrdf.observations import SurfaceTexels, tangent_frame
-from freqbrdf.spectrum import grid_entropy
+from freqbrdf.util.colour import LUMINANCE
+from freqbrdf.estimate.light import irradiance, light_quadrature
+from freqbrdf.scene.meshes import make_mesh
+from freqbrdf.scene.ply import write_ply
+from freqbrdf.capture.observations import SurfaceTexels, tangent_frame
+from freqbrdf.estimate.spectrum import grid_entropy
 
 L0 = np.array([0.5, 0.7, 0.9])  # the constant environment of the renderer tests
 

@@ -5,9 +5,9 @@ import functools
 import numpy as np
 import pytest
 
-from freqbrdf import envmaps
-from freqbrdf.render import sunsky
-from freqbrdf.sh import equirect_directions
+from freqbrdf.scene import envmaps
+from freqbrdf.scene.render import sunsky
+from freqbrdf.sphere.sampling import equirect_directions
 
 HEIGHT = 128
 

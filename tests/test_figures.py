@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from freqbrdf.figures import GREY, atlas_masks, capture_maps_figure, error_scale, relight_figure
-from freqbrdf.io import read_png
-from freqbrdf.metrics import parameter_mse, psnr_h
+from freqbrdf.report.figures import GREY, atlas_masks, capture_maps_figure, error_scale, relight_figure
+from freqbrdf.util.io import read_png
+from freqbrdf.report.metrics import parameter_mse
+from freqbrdf.report.relight_metrics import psnr_h
 
 
 def _svbrdf(rng, r=8):

@@ -1,4 +1,4 @@
-"""glTF export (freqbrdf.gltf), .hdr environments (freqbrdf.rgbe) and the viewer page (freqbrdf.viewer)."""
+"""glTF export (freqbrdf.export.gltf), .hdr environments (freqbrdf.export.rgbe) and the viewer page (freqbrdf.export.viewer)."""
 
 from __future__ import annotations
 
@@ -14,16 +14,17 @@ import numpy as np
 import pytest
 
 from freqbrdf.artefacts import read_svbrdf, write_svbrdf
-from freqbrdf.cameras import Cameras, hemisphere_rig, intrinsics
-from freqbrdf.colour import to_srgb
-from freqbrdf.envmaps import studio
-from freqbrdf.gltf import (GltfMaterial, encode_png, glb_bytes, material_images, quantise, read_glb, srgb_to_linear,
+from freqbrdf.scene.cameras import Cameras, hemisphere_rig, intrinsics
+from freqbrdf.util.colour import to_srgb
+from freqbrdf.scene.envmaps import studio
+from freqbrdf.export.gltf import (GltfMaterial, encode_png, glb_bytes, material_images, quantise, read_glb, srgb_to_linear,
                            write_glb)
-from freqbrdf.meshes import make_mesh, read_ply, write_ply
-from freqbrdf.render import relit_views
-from freqbrdf.rgbe import decode_rgbe, encode_rgbe, hdr_bytes, read_hdr, write_hdr
-from freqbrdf.textures import svbrdf_textures
-from freqbrdf.viewer import Panel, entropy_overlay, viewer_html
+from freqbrdf.scene.meshes import make_mesh
+from freqbrdf.scene.ply import read_ply, write_ply
+from freqbrdf.scene.render import relit_views
+from freqbrdf.export.rgbe import decode_rgbe, encode_rgbe, hdr_bytes, read_hdr, write_hdr
+from freqbrdf.scene.textures import svbrdf_textures
+from freqbrdf.export.viewer import Panel, entropy_overlay, viewer_html
 
 HALF_STEP = 0.5 / 255.0
 
@@ -257,8 +258,8 @@ def test_viewer_draws_every_model_lit_like_the_capture(repo, mi, tmp_path, textu
     the capture from the same view (so the environment's orientation and the camera are right: the
     same map turned a quarter round correlates worse), and the entropy overlay and the environment
     selector changing the picture."""
-    from freqbrdf.io import read_png
-    from freqbrdf.viewer import BACKGROUND
+    from freqbrdf.util.io import read_png
+    from freqbrdf.export.viewer import BACKGROUND
 
     size, fov = 64, 35.0
     env = studio(32, seed=1).astype(np.float32)

@@ -1,4 +1,4 @@
-"""Differentiable-rendering baseline (freqbrdf.inverse): tiny optimisations on a known material."""
+"""Differentiable-rendering baseline (freqbrdf.estimate.mitsuba): tiny optimisations on a known material."""
 
 import copy
 
@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 import yaml
 
-from freqbrdf.brdf import TEXTURES
-from freqbrdf import inverse as inv
-from freqbrdf.cameras import Cameras, intrinsics, look_at, mitsuba_to_world
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.estimate import mitsuba as inv
+from freqbrdf.scene.cameras import Cameras, intrinsics, look_at, mitsuba_to_world
 from freqbrdf.config import ConfigError, check_config
-from freqbrdf.meshes import make_mesh, write_ply
-from freqbrdf.render import capture_scene, mask_scene, principled_bsdf, render_views
+from freqbrdf.scene.meshes import make_mesh
+from freqbrdf.scene.ply import write_ply
+from freqbrdf.scene.render import capture_scene, mask_scene, principled_bsdf, render_views
 
 SIZE = 24  # pixels per side of the test views
 TEXELS = 8  # texels per side of the test textures

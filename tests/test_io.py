@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from freqbrdf.io import atomic_path, read_exr, read_json, read_png, write_exr, write_json, write_png
-from freqbrdf.colour import tonemap, to_srgb
+from freqbrdf.util.io import atomic_path, read_exr, read_json, read_png, write_exr, write_json, write_png
+from freqbrdf.util.colour import tonemap, to_srgb
 
 
 @pytest.mark.parametrize("shape", [(5, 7), (5, 7, 3), (5, 7, 4)])
@@ -76,7 +76,7 @@ def test_srgb_curve_and_tonemap_known_values():
 
 
 def test_atomic_directory_replaces_only_on_success(tmp_path):
-    from freqbrdf.io import atomic_directory
+    from freqbrdf.util.io import atomic_directory
 
     target = tmp_path / "capture"
     with atomic_directory(target) as tmp:
@@ -94,7 +94,7 @@ def test_atomic_path_creates_files_with_the_umask_mode(tmp_path):
     """mkstemp's owner-only mode would make every output unreadable to a cluster's other users."""
     import os
 
-    from freqbrdf.io import atomic_path
+    from freqbrdf.util.io import atomic_path
 
     old = os.umask(0o022)
     try:
@@ -107,7 +107,7 @@ def test_atomic_path_creates_files_with_the_umask_mode(tmp_path):
 
 
 def test_progress_extrapolates_the_time_left():
-    from freqbrdf.logs import progress
+    from freqbrdf.util.logs import progress
 
     assert progress(3, 24, 2.1) == "3 of 24, 2.1 s elapsed, about 15 s left"  # 0.7 s each, 21 to go
     assert progress(24, 24, 16.8).endswith("about 0 s left")

@@ -1,10 +1,10 @@
-"""The compiled kernels against their NumPy definitions (freqbrdf.kernels)."""
+"""The compiled kernels against their NumPy definitions (freqbrdf.estimate.optimise.kernels)."""
 
 import numpy as np
 import pytest
 
-from freqbrdf import kernels
-from freqbrdf.sh import real_sh, recurrence_tables, sh_degrees
+from freqbrdf.estimate.optimise import compiled, kernels
+from freqbrdf.sphere.sh import real_sh, recurrence_tables, sh_degrees
 
 
 @pytest.mark.parametrize("lmax", [0, 1, 2, 7, 20])
@@ -32,6 +32,6 @@ def test_small_cholesky_solve_matches_numpy() -> None:
         a = m @ m.T + 0.1 * np.eye(5)
         rhs = rng.normal(size=5)
         out = np.empty(5)
-        assert kernels._solve_spd5(a.copy(), rhs, out)
+        assert compiled._solve_spd5(a.copy(), rhs, out)
         np.testing.assert_allclose(out, np.linalg.solve(a, rhs), rtol=1e-9, atol=1e-12)
-    assert not kernels._solve_spd5(-np.eye(5), rhs, out)  # not positive definite
+    assert not compiled._solve_spd5(-np.eye(5), rhs, out)  # not positive definite

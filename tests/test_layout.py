@@ -1,4 +1,4 @@
-"""The code-layout rules of the README's "Repository layout": short functions, no private names
+"""The code-layout rules of the README's "Layout": short modules and functions, no private names
 imported across modules, and scripts that take every path from Snakemake rather than building one."""
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ REPO = Path(__file__).resolve().parents[1]
 SOURCES = sorted((REPO / "workflow").rglob("*.py"))
 SCRIPTS = sorted((REPO / "workflow" / "scripts").glob("*.py"))
 MAX_FUNCTION_LINES = 80
+MAX_MODULE_LINES = 600
 
 
 def long_functions(source: str) -> list[tuple[str, int]]:
@@ -39,7 +40,7 @@ def test_the_checks_find_what_they_look_for() -> None:
     body = "\n".join(f"    x = {i}" for i in range(MAX_FUNCTION_LINES))
     assert long_functions(f"def f():\n{body}\n") == [("f", MAX_FUNCTION_LINES + 1)]
     assert long_functions(f"def f():\n{body[:-10]}\n") == []
-    assert private_imports("from freqbrdf.sh import _check, eval_sh\nfrom .io import read_exr") == ["freqbrdf.sh._check"]
+    assert private_imports("from freqbrdf.sphere.sh import _check, eval_sh\nfrom .io import read_exr") == ["freqbrdf.sphere.sh._check"]
     assert results_paths('p = f"results/estimates/{obj}"\nq = "see results/ in the docs"') == ["results/estimates/"]
 
 
@@ -48,6 +49,19 @@ def test_functions_are_at_most_80_lines_and_import_no_private_names(path: Path) 
     source = path.read_text()
     assert long_functions(source) == []
     assert private_imports(source) == []
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=lambda p: str(p.relative_to(REPO / "workflow")))
+def test_modules_are_at_most_600_lines(path: Path) -> None:
+    assert len(path.read_text().splitlines()) <= MAX_MODULE_LINES
+
+
+def test_the_library_is_laid_out_in_subpackages() -> None:
+    """Beside the contracts the rules see, every module lives in a subpackage of its stage."""
+    package = REPO / "workflow" / "freqbrdf"
+    top = sorted(p.stem for p in package.glob("*.py"))
+    assert top == ["__init__", "artefacts", "config", "dependencies", "methods"]
+    assert all((d / "__init__.py").is_file() for d in package.iterdir() if d.is_dir() and any(d.glob("*.py")))
 
 
 @pytest.mark.parametrize("path", SCRIPTS, ids=lambda p: p.stem)

@@ -1,4 +1,4 @@
-"""Tests for freqbrdf.light, and recovery by the mixed model from observations it did not make."""
+"""Tests for freqbrdf.estimate.light, and recovery by the mixed model from observations it did not make."""
 
 from __future__ import annotations
 
@@ -8,19 +8,21 @@ import numpy as np
 import pytest
 
 import oracles
-from freqbrdf import envmaps, render, sh
-from freqbrdf import light as lt
-from freqbrdf import optimise as op
+from freqbrdf.scene import envmaps, render
+from freqbrdf.sphere import sampling, sh
+from freqbrdf.estimate import light as lt
+from freqbrdf.estimate.optimise.settings import OptimiseSettings
+from freqbrdf.estimate.optimise.solve import optimise
 from freqbrdf.artefacts import Observations
-from freqbrdf.brdf import R0_DIELECTRIC
-from freqbrdf.shfit import mirror_directions
+from freqbrdf.sphere.brdf import R0_DIELECTRIC
+from freqbrdf.estimate.shfit import mirror_directions
 
 
 def exact_irradiance(env: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """Sum over every pixel of the map: the definition of E."""
     h, w = env.shape[:2]
-    d = sh.equirect_directions(h, w).reshape(-1, 3)
-    power = (env * sh.equirect_solid_angles(h, w)[:, None, None]).reshape(-1, env.shape[2])
+    d = sampling.equirect_directions(h, w).reshape(-1, 3)
+    power = (env * sampling.equirect_solid_angles(h, w)[:, None, None]).reshape(-1, env.shape[2])
     return np.maximum(normals @ d.T, 0.0) @ power
 
 
@@ -44,7 +46,7 @@ ENVS = {
 def test_downsampling_keeps_the_power_of_every_block() -> None:
     env = np.random.default_rng(0).uniform(0.0, 5.0, (64, 128, 3))
     small = lt.downsample_equirect(env, 16)
-    power = lambda e: (e * sh.equirect_solid_angles(*e.shape[:2])[:, None, None]).sum(axis=(0, 1))  # noqa: E731
+    power = lambda e: (e * sampling.equirect_solid_angles(*e.shape[:2])[:, None, None]).sum(axis=(0, 1))  # noqa: E731
     np.testing.assert_allclose(power(small), power(env), rtol=1e-12)
     with pytest.raises(ValueError, match="cannot downsample a 64 x 128 map to height 48"):
         lt.downsample_equirect(env, 48)
@@ -133,12 +135,12 @@ def oracle_capture(env: np.ndarray, seed: int) -> tuple[dict, dict]:
     tangent = np.cross(helper, normal)
     tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
     frame = np.stack([tangent, np.cross(normal, tangent), normal], axis=1)
-    wo = np.einsum("tij,kj->tki", frame, sh.fibonacci_hemisphere(24))
+    wo = np.einsum("tij,kj->tki", frame, sampling.fibonacci_hemisphere(24))
     weight = np.where(wo[..., 2] > 0.05, wo[..., 2], 0.0) * (rng.random((t, 24)) >= 0.2)
 
     h, w = env.shape[:2]
-    d = sh.equirect_directions(h, w).reshape(-1, 3)
-    power = (env * sh.equirect_solid_angles(h, w)[:, None, None]).reshape(-1, 3)
+    d = sampling.equirect_directions(h, w).reshape(-1, 3)
+    power = (env * sampling.equirect_solid_angles(h, w)[:, None, None]).reshape(-1, 3)
     alpha = truth["roughness"] ** 2
     cos = normal @ d.T
     shadow = np.where(cos > 0, oracles.smith_g1(np.where(cos > 0, cos, 1.0), alpha[:, None]), 0.0)
@@ -178,9 +180,9 @@ def test_recovers_the_paper_model_above_the_band_limit(name: str, request) -> No
     env = request.getfixturevalue("sunny_env") if name == "sunny" else ENVS[name]()
     env = lt.downsample_equirect(env, 128)  # a 1.4-degree grid keeps the per-texel oracle quick
     capture, truth = oracle_capture(env, seed=0)
-    est, _ = op.optimise(
+    est, _ = optimise(
         observations(capture), lt.irradiance(env, capture["frame"][:, 2]), lt.light_quadrature(env, 20), None,
-        "freq", op.OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0),
+        "freq", OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0),
     )
     for r, tolerance in zip(ROUGHNESS, (0.05, 0.03, 0.03, 0.03)):
         sel = truth["roughness"] == r
@@ -201,10 +203,10 @@ def test_the_papers_prefiltered_light_biases_roughness_low() -> None:
     while the unfiltered light recovers it."""
     env = lt.downsample_equirect(ENVS["studio"](), 128)
     capture, truth = oracle_capture(env, seed=1)
-    settings = op.OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0)
+    settings = OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0)
     args = (observations(capture), lt.irradiance(env, capture["frame"][:, 2]))
     sel = truth["roughness"] == 0.7
-    paper, _ = op.optimise(*args, lt.light_quadrature(env, 16, prefilter=24**-0.5), None, "freq", settings)
-    ours, _ = op.optimise(*args, lt.light_quadrature(env, 16), None, "freq", settings)
+    paper, _ = optimise(*args, lt.light_quadrature(env, 16, prefilter=24**-0.5), None, "freq", settings)
+    ours, _ = optimise(*args, lt.light_quadrature(env, 16), None, "freq", settings)
     assert np.median(0.7 - paper["roughness"][sel]) > 0.03
     assert np.abs(ours["roughness"][sel] - 0.7).max() < 0.03

@@ -1,4 +1,4 @@
-"""Tests for freqbrdf.lobes: GGX's zonal SH spectrum, its weight per view, and the tables the compiled model reads."""
+"""Tests for freqbrdf.sphere.lobes: GGX's zonal SH spectrum, its weight per view, and the tables the compiled model reads."""
 
 from __future__ import annotations
 
@@ -7,11 +7,14 @@ import oracles
 import pytest
 from test_light import ENVS, observations, oracle_capture
 
-from freqbrdf import kernels
-from freqbrdf import light as lt
-from freqbrdf import optimise as op
-from freqbrdf.brdf import ALPHA_MIN, R0_DIELECTRIC
-from freqbrdf.lobes import (
+from freqbrdf.estimate.optimise import kernels
+from freqbrdf.estimate import light as lt
+from freqbrdf.estimate.optimise.kernels import KernelModel, PairData
+from freqbrdf.estimate.optimise.model import forward, light_terms
+from freqbrdf.estimate.optimise.problem import build_problem, pack_params
+from freqbrdf.estimate.optimise.settings import OptimiseSettings
+from freqbrdf.sphere.brdf import ALPHA_MIN
+from freqbrdf.sphere.lobes import (
     DIFFUSE_LOBES,
     LOBE_NODES,
     VIEW_NODES,
@@ -69,8 +72,7 @@ def test_kernels_interpolate_the_table_between_its_nodes() -> None:
     light = np.zeros((n, lmax + 1, 3))
     light[np.arange(n), np.tile(np.arange(lmax + 1), alpha.size), :] = 1.0
     model = np.empty((n, 3))
-    _, grad = kernels.l1_loss_gradient(x, np.arange(n + 1), light, np.full((n, 3), -1.0), np.zeros(n), np.zeros(n),
-                                       np.zeros((n, 3)), False, ALPHA_MIN, 1.0, model, table)
+    _, grad = kernels.l1_loss_gradient(x, light, PairData(np.arange(n + 1), np.full((n, 3), -1.0), np.zeros(n), np.zeros(n), np.zeros((n, 3))), KernelModel(False, lobe=table, r0_dielectric=1.0), model)
     f, df = ggx_lobe_spectrum(alpha, lmax)
     np.testing.assert_allclose(model[:, 0], f.ravel(), atol=1e-6)  # F = 1 (r0 1), no diffuse
     # dL/dr = 3 sign(B - B_obs) df/dalpha 2 r, all signs +1
@@ -82,9 +84,7 @@ def test_gaussian_table_is_the_closed_form_and_bad_names_are_named() -> None:
     with pytest.raises(ValueError, match="lobe must be one of \\('gaussian', 'ggx'\\), got 'phong'"):
         lobe_table("phong", 6)
     with pytest.raises(ValueError, match="lobe must be a lobe_table of degree >= 8, got shape \\(256, 2, 5\\)"):
-        kernels.l1_loss_gradient(np.zeros((1, 5)), np.array([0, 1]), np.zeros((1, 9, 3)), np.zeros((1, 3)),
-                                 np.zeros(1), np.zeros(1), np.zeros((1, 3)), False, ALPHA_MIN, 0.04, None,
-                                 lobe_table("ggx", 4))
+        kernels.l1_loss_gradient(np.zeros((1, 5)), np.zeros((1, 9, 3)), PairData(np.array([0, 1]), np.zeros((1, 3)), np.zeros(1), np.zeros(1), np.zeros((1, 3))), KernelModel(False, lobe=lobe_table("ggx", 4), r0_dielectric=0.04))
 
 
 def specular_albedo_by_angles(alpha: float, mu: float, n: int = 1500) -> tuple[float, float]:
@@ -117,11 +117,11 @@ def test_uniform_response_is_the_models_specular_term_under_a_uniform_light() ->
     quadrature of the horizon accounts for the few largest differences, at grazing views)."""
     env = np.ones((64, 128, 3))
     capture, truth = oracle_capture(env, seed=1)
-    problem = op.build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
+    problem = build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
     truth = truth | {"metallic": np.ones(truth["roughness"].size), "base_color": np.ones((truth["roughness"].size, 3))}
     for lobe in ("gaussian", "ggx"):
-        light = op.light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 12))
-        model = op.forward(op.pack_params(truth, problem.n_texels), problem, light, False, lobe_table(lobe, 12))
+        light = light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 12))
+        model = forward(pack_params(truth, problem.n_texels), problem, light, KernelModel(False, lobe_table(lobe, 12)))
         seen = capture["weight"] > 0
         expected = np.concatenate([uniform_response(np.array([r**2]), capture["wo_local"][t, seen[t], 2], lobe, 12)[0]
                                    for t, r in enumerate(truth["roughness"])])
@@ -149,8 +149,7 @@ def test_kernels_interpolate_the_view_table() -> None:
         x = np.zeros((n, 5))
         x[:, 0], x[:, 3], x[:, 4] = 1.0, r, 1.0  # channel 0: R0 = 1; channels 1, 2: R0 = 0
         out = np.empty((n, 3))
-        kernels.l1_loss_gradient(x, np.arange(n + 1), np.ones((n, 1, 3)), np.full((n, 3), -1.0), np.zeros(n), tan2,
-                                 np.zeros((n, 3)), True, ALPHA_MIN, R0_DIELECTRIC, out, None, view)
+        kernels.l1_loss_gradient(x, np.ones((n, 1, 3)), PairData(np.arange(n + 1), np.full((n, 3), -1.0), np.zeros(n), tan2, np.zeros((n, 3))), KernelModel(True, view=view), out)
         return out
 
     out = model(roughness)
@@ -164,14 +163,12 @@ def test_kernels_interpolate_the_view_table() -> None:
     x = np.zeros((n, 5))
     x[:, :3], x[:, 3] = 1.0, roughness
     diffuse = np.empty((n, 3))
-    kernels.l1_loss_gradient(x, np.arange(n + 1), np.zeros((n, 1, 3)), np.zeros((n, 3)), np.zeros(n), tan2,
-                             np.ones((n, 3)), True, ALPHA_MIN, R0_DIELECTRIC, diffuse, None, view)
+    kernels.l1_loss_gradient(x, np.zeros((n, 1, 3)), PairData(np.arange(n + 1), np.zeros((n, 3)), np.zeros(n), tan2, np.ones((n, 3))), KernelModel(True, view=view), diffuse)
     expected = np.array([principled_diffuse_albedo(np.array([r]), np.array([m]))[0, 0] for r, m in zip(roughness, mu)])
     np.testing.assert_allclose(diffuse[:, 0], expected, rtol=2e-3)
     x = np.zeros((n, 5))
     x[:, 0], x[:, 3], x[:, 4] = 1.0, roughness, 1.0
-    _, grad = kernels.l1_loss_gradient(x, np.arange(n + 1), np.ones((n, 1, 3)), np.full((n, 3), -1.0), np.zeros(n),
-                                       tan2, np.zeros((n, 3)), True, ALPHA_MIN, R0_DIELECTRIC, None, None, view)
+    _, grad = kernels.l1_loss_gradient(x, np.ones((n, 1, 3)), PairData(np.arange(n + 1), np.full((n, 3), -1.0), np.zeros(n), tan2, np.zeros((n, 3))), KernelModel(True, view=view))
     h = 1e-6
     fd = (model(roughness + h) - model(roughness - h)).sum(axis=1) / (2 * h)  # all signs +1
     np.testing.assert_allclose(grad[:, 3], fd, rtol=1e-5, atol=1e-8)
@@ -185,13 +182,12 @@ def test_albedo_weight_matches_ggx_under_a_uniform_light() -> None:
     env = np.ones((64, 128, 3))
     capture, truth = oracle_capture(env, seed=0)
     ggx = oracles.ggx_radiance(env, capture, truth).sum(-1)
-    problem = op.build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
-    light = op.light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 20))
+    problem = build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
+    light = light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 20))
     seen = capture["weight"] > 0
     ratio = {}
     for weight, diffuse in zip(VIEW_WEIGHTS, DIFFUSE_LOBES):
-        model = op.forward(op.pack_params(truth, problem.n_texels), problem, light, True, lobe_table("ggx", 20),
-                           view_table(weight, diffuse, "ggx", 20))
+        model = forward(pack_params(truth, problem.n_texels), problem, light, KernelModel(True, lobe_table("ggx", 20), view_table(weight, diffuse, "ggx", 20)))
         ratio[weight] = model.sum(-1)[seen] / ggx[seen]
     assert np.abs(ratio["albedo"] - 1).max() < 0.02, np.abs(ratio["albedo"] - 1).max()
     metal = np.broadcast_to((truth["metallic"] == 1)[:, None] & (truth["roughness"] >= 0.7)[:, None], seen.shape)[seen]
@@ -205,13 +201,11 @@ def test_view_weight_names_are_checked() -> None:
     with pytest.raises(ValueError, match="diffuse must be one of \\('lambert', 'principled'\\), got 'oren'"):
         view_table("paper", "oren", "ggx", 20)
     with pytest.raises(ValueError, match="view must be a view_table, got shape \\(3, 2, 2\\)"):
-        kernels.l1_loss_gradient(np.zeros((1, 5)), np.array([0, 1]), np.zeros((1, 9, 3)), np.zeros((1, 3)),
-                                 np.zeros(1), np.zeros(1), np.zeros((1, 3)), False, ALPHA_MIN, 0.04, None, None,
-                                 np.zeros((3, 2, 2)))
+        kernels.l1_loss_gradient(np.zeros((1, 5)), np.zeros((1, 9, 3)), PairData(np.array([0, 1]), np.zeros((1, 3)), np.zeros(1), np.zeros(1), np.zeros((1, 3))), KernelModel(False, view=np.zeros((3, 2, 2)), r0_dielectric=0.04))
     with pytest.raises(ValueError, match="view_weight must be one of"):
-        op.OptimiseSettings(view_weight="albedos")
+        OptimiseSettings(view_weight="albedos")
     with pytest.raises(ValueError, match="diffuse must be one of"):
-        op.OptimiseSettings(diffuse="oren")
+        OptimiseSettings(diffuse="oren")
 
 
 @pytest.mark.parametrize("masking", [True, False])
@@ -223,12 +217,12 @@ def test_the_principled_diffuse_term_scales_the_papers_model(masking: bool) -> N
     env = ENVS["studio"]()
     env = lt.downsample_equirect(env, 64)
     capture, truth = oracle_capture(env, seed=2)
-    problem = op.build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
-    light = op.light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 12))
-    x, lobe = op.pack_params(truth, problem.n_texels), lobe_table("ggx", 12)
-    closed = op.forward(x, problem, light, masking, lobe)
-    tabled = op.forward(x, problem, light, masking, lobe, view_table("paper", "principled", "ggx", 12))
-    diffuse = op.forward(x, problem, np.zeros_like(light), masking, lobe)  # no light: the diffuse term alone
+    problem = build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
+    light = light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 12))
+    x, lobe = pack_params(truth, problem.n_texels), lobe_table("ggx", 12)
+    closed = forward(x, problem, light, KernelModel(masking, lobe))
+    tabled = forward(x, problem, light, KernelModel(masking, lobe, view_table("paper", "principled", "ggx", 12)))
+    diffuse = forward(x, problem, np.zeros_like(light), KernelModel(masking, lobe))  # no light: the diffuse term alone
     seen = capture["weight"] > 0
     factor = np.zeros(seen.shape)
     for t, r in enumerate(truth["roughness"]):

@@ -1,9 +1,9 @@
-"""Tests for freqbrdf.merge: the entropy-guided merge of paper Table 6."""
+"""Tests for freqbrdf.estimate.merge: the entropy-guided merge of paper Table 6."""
 
 import numpy as np
 import pytest
 
-from freqbrdf.merge import entropy_merge
+from freqbrdf.estimate.merge import entropy_merge
 
 
 def constant_svbrdf(value: float, r: int = 4) -> dict[str, np.ndarray]:

@@ -1,11 +1,12 @@
-"""A user's mesh (PLY or OBJ, any common layout) read through freqbrdf.mesh_io."""
+"""A user's mesh (PLY or OBJ, any common layout) read through freqbrdf.capture.mesh_io."""
 
 import numpy as np
 import pytest
 from plyfile import PlyData, PlyElement
 
-from freqbrdf.mesh_io import read_mesh, triangulate
-from freqbrdf.meshes import make_mesh, read_ply, vertex_normals, write_ply
+from freqbrdf.capture.mesh_io import read_mesh, triangulate
+from freqbrdf.scene.meshes import make_mesh, vertex_normals
+from freqbrdf.scene.ply import read_ply, write_ply
 
 
 def _write_ply(path, mesh, uv_names=("u", "v"), normals=True, extra_vertex=False, index_type="i4",

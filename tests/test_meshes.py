@@ -1,4 +1,4 @@
-"""Tests for workflow/freqbrdf/meshes.py (procedural objects, UV atlases, PLY I/O)."""
+"""Tests for freqbrdf.scene.meshes (procedural objects, UV atlases) and freqbrdf.scene.ply (PLY I/O)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,9 @@ from scipy.optimize import linprog
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from freqbrdf import meshes as M
-from freqbrdf.meshes import OBJECTS, Mesh, make_mesh, read_ply, write_ply
+from freqbrdf.scene import meshes as M
+from freqbrdf.scene.meshes import OBJECTS, Mesh, make_mesh
+from freqbrdf.scene.ply import read_ply, write_ply
 
 GENUS = {"sphere": 0, "torus": 1, "die": 0, "vase": 0, "knot": 1}
 CHARTS = {"sphere": 1, "torus": 1, "die": 6, "vase": 1, "knot": 4}

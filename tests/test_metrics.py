@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from freqbrdf.metrics import parameter_mse, pearson
+from freqbrdf.report.metrics import parameter_mse, pearson
 
 
 def _svbrdf(value: float, r: int = 4):
@@ -37,12 +37,12 @@ def test_mismatched_sizes_and_empty_masks_are_refused():
 # --------------------------------------------------------------------------
 # relighting metrics
 # --------------------------------------------------------------------------
-from freqbrdf.colour import to_srgb  # noqa: E402
-from freqbrdf.metrics import (  # noqa: E402
+from freqbrdf.util.colour import to_srgb  # noqa: E402
+from freqbrdf.report.metrics import parameter_error_map  # noqa: E402
+from freqbrdf.report.relight_metrics import (  # noqa: E402
     channel_scale,
     hdr_pair,
     image_mse,
-    parameter_error_map,
     relight_scores,
     scored_pixels,
     psnr_h,
@@ -172,7 +172,7 @@ def test_relight_scores_average_the_views():
 
 
 def test_time_to_reach_interpolates_and_says_never():
-    from freqbrdf.metrics import time_to_reach
+    from freqbrdf.report.metrics import time_to_reach
 
     t, mse = np.array([0.0, 10.0, 20.0, 30.0]), np.array([0.20, 0.10, 0.06, 0.05])
     assert time_to_reach(t, mse, 0.08) == pytest.approx(15.0)  # halfway from 0.10 to 0.06
@@ -189,7 +189,7 @@ def test_time_to_reach_interpolates_and_says_never():
 # the principled BRDF that brdf_log_rmse scores
 # --------------------------------------------------------------------------
 import oracles  # noqa: E402
-from freqbrdf.metrics import ggx_ndf, principled_brdf  # noqa: E402
+from freqbrdf.report.metrics import ggx_ndf, principled_brdf  # noqa: E402
 
 
 def test_ggx_ndf_is_normalised_over_projected_half_vectors() -> None:
@@ -241,7 +241,7 @@ def test_principled_brdf_refuses_directions_below_the_surface() -> None:
 # --------------------------------------------------------------------------
 # BRDF-space error and the scale-invariant base colour
 # --------------------------------------------------------------------------
-from freqbrdf.metrics import base_color_si_scores, brdf_directions, brdf_log_rmse  # noqa: E402
+from freqbrdf.report.metrics import base_color_si_scores, brdf_directions, brdf_log_rmse  # noqa: E402
 
 
 def _textures(base, roughness, metallic, r: int = 4):

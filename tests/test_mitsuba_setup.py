@@ -4,8 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from freqbrdf import mitsuba_setup
-from freqbrdf.mitsuba_setup import LLVMNotFoundError, find_llvm, llvm_major_version
+from freqbrdf.util import mitsuba_setup
+from freqbrdf.util.mitsuba_setup import LLVMNotFoundError, find_llvm, llvm_major_version
 
 
 @pytest.mark.parametrize(

@@ -5,9 +5,10 @@ import functools
 import numpy as np
 import pytest
 
-from freqbrdf.cameras import Cameras, hemisphere_rig, intrinsics, look_at, mitsuba_to_world, project
-from freqbrdf.meshes import make_mesh, write_ply
-from freqbrdf.observations import (
+from freqbrdf.scene.cameras import Cameras, hemisphere_rig, intrinsics, look_at, mitsuba_to_world, project
+from freqbrdf.scene.meshes import make_mesh
+from freqbrdf.scene.ply import write_ply
+from freqbrdf.capture.observations import (
     band_limit_parameter,
     band_limited_envmap,
     bilinear_views,
@@ -18,9 +19,10 @@ from freqbrdf.observations import (
     tangent_frame,
     view_geometry,
 )
-from freqbrdf.raycast import distance_maps, mesh_scene, occlusion_test
-from freqbrdf.render import eval_environment, mask_scene, render_views
-from freqbrdf.sh import eval_sh, equirect_directions, fibonacci_sphere, sh_degrees
+from freqbrdf.scene.raycast import distance_maps, mesh_scene, occlusion_test
+from freqbrdf.scene.render import eval_environment, mask_scene, render_views
+from freqbrdf.sphere.sh import eval_sh, sh_degrees
+from freqbrdf.sphere.sampling import equirect_directions, fibonacci_sphere
 
 SIZE, FOV = 128, 35.0
 
@@ -320,7 +322,7 @@ def test_bilinear_views_on_no_samples():
 
 
 def test_unusable_views_are_named_with_their_reason():
-    from freqbrdf.observations import unusable_views
+    from freqbrdf.capture.observations import unusable_views
 
     images = np.ones((4, 5, 6, 3), np.float32)
     coverage = np.ones((4, 5, 6), np.float32)

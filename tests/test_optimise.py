@@ -1,4 +1,4 @@
-"""Tests for freqbrdf.optimise (forward model, analytic gradient, Adam estimator)."""
+"""Tests for freqbrdf.estimate.optimise (forward model, analytic gradient, Adam estimator)."""
 
 from __future__ import annotations
 
@@ -6,14 +6,19 @@ import numpy as np
 import pytest
 
 import oracles
-from freqbrdf import light as lt
+from freqbrdf.estimate import light as lt
 from freqbrdf.artefacts import Observations
-from freqbrdf.brdf import TEXTURES
-from freqbrdf import optimise as op
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.estimate.optimise.kernels import KernelModel, LmStep
+from freqbrdf.estimate.optimise.model import forward, grid_start, light_terms, loss_and_gradient, model_tables, refit_light
+from freqbrdf.estimate.optimise.problem import Problem, atlas_neighbours, build_problem, pack_params, total_variation
+from freqbrdf.estimate.optimise.settings import OptimiseSettings, identifiable_roughness
+from freqbrdf.estimate.optimise.solve import optimise
+from freqbrdf.estimate.optimise import problem as problem_module
 from freqbrdf import methods
-from freqbrdf import kernels, sh
-from freqbrdf.brdf import ALPHA_MIN, R0_DIELECTRIC
-from freqbrdf.lobes import ggx_lobe_spectrum
+from freqbrdf.estimate.optimise import kernels
+from freqbrdf.sphere import sampling, sh
+from freqbrdf.sphere.lobes import ggx_lobe_spectrum
 
 OPTIMISER_METHODS = methods.methods_of("optimise_svbrdf")
 
@@ -25,7 +30,7 @@ LMAX = 8  # degree of the model's light in these tests (the pipeline's default i
 # --------------------------------------------------------------------------
 def local_hemisphere(n: int) -> np.ndarray:
     """Fibonacci points on the local upper hemisphere (z = normal), (n, 3)."""
-    p = sh.fibonacci_hemisphere(n)  # about +Y
+    p = sampling.fibonacci_hemisphere(n)  # about +Y
     return np.stack([p[:, 0], -p[:, 2], p[:, 1]], axis=-1)
 
 
@@ -56,14 +61,14 @@ def synthetic_scene(n_tex: int, n_views: int, seed: int, drop: float = 0.2, n_la
     turn[:, 2, 2] = 1.0
     wo = np.einsum("tij,kj->tki", turn, local_hemisphere(n_views))
     weight = wo[..., 2] * (rng.random((n_tex, n_views)) >= drop)
-    lamps = sh.fibonacci_sphere(n_lamps)
+    lamps = sampling.fibonacci_sphere(n_lamps)
     power = rng.uniform(0.5, 2.0, (n_lamps, 3))
     kappa = rng.uniform(50.0, 200.0, n_lamps)
 
     def light(d: np.ndarray) -> np.ndarray:
         return 0.2 + 0.1 * d[..., 1:2] + np.exp(kappa * (d @ lamps.T - 1.0)) @ power
 
-    env = light(sh.equirect_directions(128, 256))
+    env = light(sampling.equirect_directions(128, 256))
     side = int(np.ceil(np.sqrt(n_tex)))
     return with_env({"weight": weight, "wo_local": wo, "frame": frame, "texel": np.arange(n_tex), "resolution": side},
                     env)
@@ -93,12 +98,12 @@ def observations(scene: dict, radiance: np.ndarray | None = None) -> Observation
                                     scene["resolution"])
 
 
-def problem_of(scene: dict, radiance: np.ndarray | None = None, dtype: str = "float64", **kw) -> op.Problem:
-    return op.build_problem(observations(scene, radiance), scene["irradiance"], dtype, **kw)
+def problem_of(scene: dict, radiance: np.ndarray | None = None, dtype: str = "float64", **kw) -> Problem:
+    return build_problem(observations(scene, radiance), scene["irradiance"], dtype, **kw)
 
 
-def terms(scene: dict, problem: op.Problem, roughness: np.ndarray, shadowing: bool) -> np.ndarray:
-    return op.light_terms(roughness, problem, shadowing, scene["light"])
+def terms(scene: dict, problem: Problem, roughness: np.ndarray, shadowing: bool) -> np.ndarray:
+    return light_terms(roughness, problem, shadowing, scene["light"])
 
 
 def variant(method: str) -> tuple[bool, bool, bool]:
@@ -115,7 +120,7 @@ MODELS = [("gaussian", "paper", "lambert"), ("ggx", "paper", "lambert"), ("ggx",
 def tables(model: tuple[str, str, str], method: str) -> tuple[np.ndarray, np.ndarray]:
     """The lobe and view tables `optimise` uses for ``method`` with ``model``."""
     lobe, weight, diffuse = model
-    return op.model_tables(op.OptimiseSettings(lobe=lobe, view_weight=weight, diffuse=diffuse), method, LMAX)
+    return model_tables(OptimiseSettings(lobe=lobe, view_weight=weight, diffuse=diffuse), method, LMAX)
 
 
 def render(scene: dict, params: dict, method: str, model: tuple[str, str, str] = MODELS[0]) -> np.ndarray:
@@ -123,14 +128,14 @@ def render(scene: dict, params: dict, method: str, model: tuple[str, str, str] =
     shadowing, masking, _ = variant(method)
     problem = problem_of(scene)
     light = terms(scene, problem, params["roughness"], shadowing)
-    return op.forward(op.pack_params(params, problem.n_texels), problem, light, masking, *tables(model, method))
+    return forward(pack_params(params, problem.n_texels), problem, light, KernelModel(masking, *tables(model, method)))
 
 
 def run(
     scene: dict, radiance: np.ndarray, method: str, init: dict | None = None, **settings: object
 ) -> tuple[dict, np.ndarray]:
-    return op.optimise(observations(scene, radiance), scene["irradiance"], scene["light"], init, method,
-                       op.OptimiseSettings(**settings))
+    return optimise(observations(scene, radiance), scene["irradiance"], scene["light"], init, method,
+                       OptimiseSettings(**settings))
 
 
 @pytest.fixture(scope="module")
@@ -160,15 +165,15 @@ def test_methods_map_to_shadowing_and_masking() -> None:
 def test_atlas_neighbours_and_total_variation_by_hand() -> None:
     # 3 x 3 atlas, texels at flat 0, 1, 2, 4, 7 (a T shape): pairs 0-1, 1-2 (horizontal), 1-4, 4-7 (vertical)
     texel = np.array([0, 1, 2, 4, 7])
-    nb = op.atlas_neighbours(texel, 3)
+    nb = atlas_neighbours(texel, 3)
     assert {tuple(texel[p]) for p in nb} == {(0, 1), (1, 2), (1, 4), (4, 7)}
     x = np.array([[0.0, 1.0], [1.0, 1.0], [3.0, 1.0], [0.0, 0.5], [0.0, 1.0]])
-    tv, grad = op.total_variation(x, nb)
+    tv, grad = total_variation(x, nb)
     # |0-1| + |1-3| + |1-0| + |0-0| + |1-1|...: channel 0 gives 1 + 2 + 1 + 0, channel 1 gives 0 + 0 + 0.5 + 0.5
     assert tv == pytest.approx((4.0 + 1.0) / 4)
     # texel at flat 4 (row 3): channel 1 below both neighbours; channel 0 equals its lower neighbour (sign 0)
     np.testing.assert_allclose(grad[3], [-1.0 / 4, -2.0 / 4])
-    assert op.total_variation(x, np.zeros((0, 2), int))[0] == 0.0
+    assert total_variation(x, np.zeros((0, 2), int))[0] == 0.0
 
 
 # --------------------------------------------------------------------------
@@ -177,8 +182,8 @@ def test_atlas_neighbours_and_total_variation_by_hand() -> None:
 def dense_shadowed_light(env: np.ndarray, normal: np.ndarray, alpha: np.ndarray, lmax: int) -> np.ndarray:
     """Independent reference: SH of G1(n . w) L(w) over each upper hemisphere, by the map's own pixels."""
     h, w = env.shape[:2]
-    d = sh.equirect_directions(h, w).reshape(-1, 3)
-    power = (env * sh.equirect_solid_angles(h, w)[:, None, None]).reshape(-1, 3)
+    d = sampling.equirect_directions(h, w).reshape(-1, 3)
+    power = (env * sampling.equirect_solid_angles(h, w)[:, None, None]).reshape(-1, 3)
     cos = normal @ d.T
     g = np.where(cos > 0, 2 / (1 + np.sqrt(1 + alpha[:, None] ** 2 * (1 - cos**2) / np.where(cos > 0, cos, 1) ** 2)), 0)
     return np.einsum("tq,qc,qi->tic", g, power, sh.real_sh(d, lmax))
@@ -264,7 +269,7 @@ def test_rough_dielectric_under_constant_light(method: str) -> None:
     base = np.random.default_rng(2).uniform(0.1, 0.9, (6, 3))
     params = {"base_color": base, "roughness": np.ones(6), "metallic": np.zeros(6)}
     light = terms(scene, problem, params["roughness"], shadowing)
-    b = op.forward(op.pack_params(params, 6), problem, light, masking)
+    b = forward(pack_params(params, 6), problem, light, KernelModel(masking))
     cos = scene["wo_local"][..., 2]
     fresnel = oracles.schlick_fresnel(0.04, cos)[..., None]
     g1 = oracles.smith_g1(cos, 1.0)[..., None]
@@ -289,7 +294,7 @@ def test_variants_differ_only_where_they_should() -> None:
     scene = synthetic_scene(30, 24, seed=2)
     params = random_params(30, seed=3)
     problem = problem_of(scene)
-    x = op.pack_params(params, 30)
+    x = pack_params(params, 30)
     kd = (1 - params["metallic"])[:, None] * params["base_color"]
     diffuse = (kd * scene["irradiance"] / np.pi)[:, None, :]
     obs = scene["weight"] > 0
@@ -305,7 +310,7 @@ def test_variants_differ_only_where_they_should() -> None:
     np.testing.assert_array_equal(l1, l2)
     # the model is the diffuse term plus a positive specular term
     assert all(np.all(s[obs] > 0) for s in spec.values())
-    assert np.all(op.forward(x, problem, terms(scene, problem, params["roughness"], True), True)[~obs] == 0)
+    assert np.all(forward(x, problem, terms(scene, problem, params["roughness"], True), KernelModel(True))[~obs] == 0)
 
 
 # --------------------------------------------------------------------------
@@ -333,24 +338,24 @@ def test_gradient_matches_central_differences(small: dict, method: str, model: t
     tv_weight = 0.05  # large enough that TV is a sizeable part of every gradient
 
     def loss(xx: np.ndarray) -> float:
-        return op.loss_and_gradient(xx, problem, light, masking, tv_weight, lobe=table, view=view)[0]
+        return loss_and_gradient(xx, problem, light, KernelModel(masking, table, view), tv_weight)[0]
 
-    _, grad = op.loss_and_gradient(x, problem, light, masking, tv_weight, lobe=table, view=view)
+    _, grad = loss_and_gradient(x, problem, light, KernelModel(masking, table, view), tv_weight)
     fd = central_differences(loss, x)
     for name, cols in (("base", slice(0, 3)), ("roughness", slice(3, 4)), ("metallic", slice(4, 5))):
         rel = np.linalg.norm(fd[:, cols] - grad[:, cols]) / np.linalg.norm(grad[:, cols])
         assert rel < 1e-6, f"{method} {name}: relative error {rel:.2e}"
     # the TV part is the TV gradient
-    _, grad0 = op.loss_and_gradient(x, problem, light, masking, 0.0, lobe=table, view=view)
-    np.testing.assert_allclose(grad - grad0, tv_weight * op.total_variation(x, problem.neighbours)[1], atol=1e-15)
+    _, grad0 = loss_and_gradient(x, problem, light, KernelModel(masking, table, view), 0.0)
+    np.testing.assert_allclose(grad - grad0, tv_weight * total_variation(x, problem.neighbours)[1], atol=1e-15)
 
 
 def test_float32_loss_and_gradient_match_float64(small: dict) -> None:
     p64 = problem_of(small, small["radiance"], "float64")
     p32 = problem_of(small, small["radiance"], "float32")
     x = np.random.default_rng(8).uniform(0.1, 0.9, (18, 5))
-    l64, g64 = op.loss_and_gradient(x, p64, terms(small, p64, x[:, 3], True), True)
-    l32, g32 = op.loss_and_gradient(x, p32, terms(small, p32, x[:, 3], True), True)
+    l64, g64 = loss_and_gradient(x, p64, terms(small, p64, x[:, 3], True), KernelModel(True))
+    l32, g32 = loss_and_gradient(x, p32, terms(small, p32, x[:, 3], True), KernelModel(True))
     assert l32 == pytest.approx(l64, rel=1e-5)
     np.testing.assert_allclose(g32, g64, rtol=1e-3, atol=1e-4 * np.abs(g64).max())
 
@@ -358,20 +363,19 @@ def test_float32_loss_and_gradient_match_float64(small: dict) -> None:
 def test_threads_do_not_change_results() -> None:
     scene = synthetic_scene(300, 10, seed=31)  # several blocks of texels per thread
     params = random_params(300, seed=32)
-    x = op.pack_params(params, 300)
+    x = pack_params(params, 300)
     problem = problem_of(scene, render(scene, params, "freq") * 1.1, "float32")
     light = terms(scene, problem, x[:, 3], True)
-    a = op.loss_and_gradient(x, problem, light, True, workers=1)
-    b = op.loss_and_gradient(x, problem, light, True, workers=2)
+    a = loss_and_gradient(x, problem, light, KernelModel(True), workers=1)
+    b = loss_and_gradient(x, problem, light, KernelModel(True), workers=2)
     assert a[0] == b[0]
     np.testing.assert_array_equal(a[1], b[1])
-    start = op.grid_start(problem, light, True, np.linspace(0, 1, 5), np.linspace(0, 1, 3), workers=1)
-    np.testing.assert_array_equal(start, op.grid_start(problem, light, True, np.linspace(0, 1, 5),
-                                                       np.linspace(0, 1, 3), workers=2))
-    np.testing.assert_array_equal(light, op.light_terms(x[:, 3], problem, True, scene["light"], workers=2))
+    start = grid_start(problem, light, KernelModel(True), np.linspace(0, 1, 5), np.linspace(0, 1, 3), workers=1)
+    np.testing.assert_array_equal(start, grid_start(problem, light, KernelModel(True), np.linspace(0, 1, 5), np.linspace(0, 1, 3), workers=2))
+    np.testing.assert_array_equal(light, light_terms(x[:, 3], problem, True, scene["light"], workers=2))
     obs = observations(scene, render(scene, params, "freq") * 1.1)
-    lm = [op.optimise(obs, scene["irradiance"], scene["light"], method="freq",
-                      settings=op.OptimiseSettings(solver="lm", sweeps=4, sweep_refit_every=2, workers=w))
+    lm = [optimise(obs, scene["irradiance"], scene["light"], method="freq",
+                      settings=OptimiseSettings(solver="lm", sweeps=4, sweep_refit_every=2, workers=w))
           for w in (1, 2)]
     for k in TEXTURES:
         np.testing.assert_array_equal(lm[0][0][k], lm[1][0][k])
@@ -424,7 +428,7 @@ def test_optimisation_decreases_the_loss_and_respects_bounds(capture: tuple[dict
     radiance = render(scene, truth, "freq")
     # from 0.5, a large step drives texels to the bounds
     est, curve = run(scene, radiance, "freq", iterations=150, lr=0.1, grid_start=False)
-    x = op.pack_params(est, 200)  # raises if outside [0, 1]
+    x = pack_params(est, 200)  # raises if outside [0, 1]
     assert ((x == 0.0) | (x == 1.0)).any()
     assert curve.shape == (150,)
     # falls until it reaches the step's noise floor (refits included), then stays there
@@ -446,35 +450,33 @@ def test_lm_sweep_is_block_coordinate_descent(small: dict) -> None:
     lam = np.full(problem.n_texels, 1e-2)
     colours = problem.colours
     assert sum(c.shape[0] for c in colours) == problem.n_texels
-    edges = op._difference_operator(np.argsort(problem.perm)[problem.neighbours], problem.n_texels)
+    edges = problem_module._difference_operator(np.argsort(problem.perm)[problem.neighbours], problem.n_texels)
     for c in colours:  # no edge joins two texels of one colour
         inside = np.isin(edges.indices.reshape(-1, 2), c).all(axis=1)
         assert not inside.any()
-    first = previous = op.loss_and_gradient(x, problem, light, True, tv_weight)[0]
+    first = previous = loss_and_gradient(x, problem, light, KernelModel(True), tv_weight)[0]
     for _ in range(3):
         for texels in colours:
-            data, _ = op._l1(xp, problem, light, True)
+            data, _ = kernels.l1_loss_gradient(np.ascontiguousarray(xp[: problem.n_observed]), light,
+                                               problem.pair_data, KernelModel(True))
             expected = np.zeros(problem.n_texels)
             expected[: problem.n_observed] = data / (3.0 * problem.n_pairs)
             diff = np.abs(edges @ xp).sum(axis=1) * tv_weight / n_edges
             np.add.at(expected, edges.indices.reshape(-1, 2)[:, 0], diff)
             np.add.at(expected, edges.indices.reshape(-1, 2)[:, 1], diff)
-            cost = kernels.lm_sweep(xp, texels, problem.start, light, problem.radiance, problem.schlick,
-                                    problem.tan2, problem.irradiance_pi, True, ALPHA_MIN, R0_DIELECTRIC,
-                                    problem.nb_start, problem.nb, 1.0 / (3.0 * problem.n_pairs),
-                                    tv_weight / n_edges, np.zeros(5), np.ones(5), 1e-2, 1e-2, lam, 4)
+            cost = kernels.lm_sweep(xp, texels, light, problem.pair_data, KernelModel(True), (problem.nb_start, problem.nb), LmStep(1.0 / (3.0 * problem.n_pairs), tv_weight / n_edges, np.zeros(5), np.ones(5), 1e-2, 1e-2, 4), lam)
             np.testing.assert_allclose(cost, expected[texels], rtol=1e-9)
             x = np.empty_like(xp)
             x[problem.perm] = xp
             assert ((x >= 0) & (x <= 1)).all()
-            total = op.loss_and_gradient(x, problem, light, True, tv_weight)[0]
+            total = loss_and_gradient(x, problem, light, KernelModel(True), tv_weight)[0]
             assert total <= previous * (1 + 1e-12)
             previous = total
     assert previous < 0.8 * first
 
 
 def test_self_consistency_with_the_albedo_weight(capture: tuple[dict, dict]) -> None:
-    """The albedo weight (`freqbrdf.lobes.view_table`) recovered by LM, the light refitted for every
+    """The albedo weight (`freqbrdf.sphere.lobes.view_table`) recovered by LM, the light refitted for every
     texel that moved (``refit_tolerance`` 0): metallic MSE 5e-6. With the default tolerance 0.02
     the light of the texels that moved less stays shadowed at their old roughness, which the
     albedo's stronger dependence of rough metals on alpha turns into a metallic MSE of 1.7e-4
@@ -497,20 +499,17 @@ def test_lm_converges_quadratically_from_near_the_truth(capture: tuple[dict, dic
     scene, truth = capture
     truth = {"base_color": np.clip(truth["base_color"], 0.05, 0.95), "roughness": truth["roughness"],
              "metallic": np.clip(truth["metallic"], 0.05, 0.95)}
-    x_true = op.pack_params(truth, 200)
+    x_true = pack_params(truth, 200)
     problem = problem_of(scene)
     light = terms(scene, problem, truth["roughness"], True)  # held fixed, as between refits
     table, view = tables(model, "freq")
-    problem = problem_of(scene, op.forward(x_true, problem, light, True, table, view))
+    problem = problem_of(scene, forward(x_true, problem, light, KernelModel(True, table, view)))
     rng = np.random.default_rng(14)
     xp = (x_true + 1e-3 * rng.choice([-1.0, 1.0], x_true.shape))[problem.perm]
     lam = np.full(200, 1e-2)
     for _ in range(6):
         for texels in problem.colours:
-            kernels.lm_sweep(xp, texels, problem.start, light, problem.radiance, problem.schlick, problem.tan2,
-                             problem.irradiance_pi, True, ALPHA_MIN, R0_DIELECTRIC, problem.nb_start, problem.nb,
-                             1.0 / (3.0 * problem.n_pairs), 0.0, np.zeros(5), np.ones(5), 1e-2, 1e-2, lam, 4, table,
-                             view)
+            kernels.lm_sweep(xp, texels, light, problem.pair_data, KernelModel(True, lobe=table, view=view), (problem.nb_start, problem.nb), LmStep(1.0 / (3.0 * problem.n_pairs), 0.0, np.zeros(5), np.ones(5), 1e-2, 1e-2, 4), lam)
     error = np.abs(xp - x_true[problem.perm]).max(axis=1)
     assert np.median(error) < 1e-10 and error.max() < 1e-5
 
@@ -542,10 +541,10 @@ def test_tv_smooths_a_noisy_field_and_fills_unobserved_texels(schedule: dict) ->
     radiance = render(scene, truth, "freq")
     rng = np.random.default_rng(6)
     init = {k: np.clip(v + rng.normal(0.0, 0.15, v.shape), 0.0, 1.0) for k, v in truth.items()}
-    nb = op.atlas_neighbours(scene["texel"], 12)
+    nb = atlas_neighbours(scene["texel"], 12)
 
     def tv(p: dict) -> float:
-        return op.total_variation(op.pack_params(p, 144), nb)[0]
+        return total_variation(pack_params(p, 144), nb)[0]
 
     plain, _ = run(scene, radiance, "freq", init=init, tv_weight=0.0, **schedule)
     smooth, _ = run(scene, radiance, "freq", init=init, tv_weight=0.05, **schedule)
@@ -554,7 +553,7 @@ def test_tv_smooths_a_noisy_field_and_fills_unobserved_texels(schedule: dict) ->
     assert tv(smooth) < 0.5 * tv(plain)
     assert tv(smooth) < 0.5 * tv(init)
     # the hidden block is pulled toward its neighbours, i.e. toward the truth
-    err = {name: np.mean((op.pack_params(p, 144)[hidden] - op.pack_params(truth, 144)[hidden]) ** 2)
+    err = {name: np.mean((pack_params(p, 144)[hidden] - pack_params(truth, 144)[hidden]) ** 2)
            for name, p in (("init", init), ("smooth", smooth))}
     assert err["smooth"] < 0.5 * err["init"]
 
@@ -580,8 +579,8 @@ def test_bad_inputs_are_named(small: dict) -> None:
         args.update(over)
         obs = Observations.from_arrays(*(args[k] for k in ("radiance", "weight", "wo_local", "frame", "texel",
                                                             "resolution")))
-        op.optimise(obs, args["irradiance"], args["light"], init=args.get("init"), method=args.get("method", "freq"),
-                    settings=op.OptimiseSettings(iterations=1))
+        optimise(obs, args["irradiance"], args["light"], init=args.get("init"), method=args.get("method", "freq"),
+                    settings=OptimiseSettings(iterations=1))
 
     with pytest.raises(ValueError, match="method must be one of .* got 'frq'"):
         call(method="frq")
@@ -606,15 +605,15 @@ def test_bad_inputs_are_named(small: dict) -> None:
     with pytest.raises(ValueError, match="lacks \\['metallic'\\]"):
         call(init={"base_color": init["base_color"], "roughness": np.zeros(18)})
     with pytest.raises(ValueError, match="lr must be a finite number > 0, got -1"):
-        op.OptimiseSettings(lr=-1)
+        OptimiseSettings(lr=-1)
     with pytest.raises(ValueError, match=r"frame must have shape \(18, 3, 3\)"):
         call(frame=small["frame"][:5])
     with pytest.raises(ValueError, match="min_roughness must be in \\[0, 1\\), got 1.0"):
-        op.OptimiseSettings(min_roughness=1.0)
+        OptimiseSettings(min_roughness=1.0)
     with pytest.raises(ValueError, match="solver must be one of \\('adam', 'lm'\\), got 'newton'"):
-        op.OptimiseSettings(solver="newton")
+        OptimiseSettings(solver="newton")
     with pytest.raises(ValueError, match="irls_floor must be a finite number > 0, got 0"):
-        op.OptimiseSettings(irls_floor=0)
+        OptimiseSettings(irls_floor=0)
 
 
 @pytest.mark.parametrize("schedule", [{"iterations": 60, "lr": 0.05}, {"solver": "lm", "sweeps": 10}])
@@ -634,14 +633,14 @@ def test_min_roughness_bounds_the_fit_from_below(small: dict, schedule: dict) ->
 
 def test_identifiable_roughness_is_where_the_lobe_fits_below_the_degree() -> None:
     """alpha (l* + 1) = sqrt(ln 20): the lobe keeps 5% of a point light's weight above l*."""
-    r = op.identifiable_roughness(20)
+    r = identifiable_roughness(20)
     assert r == pytest.approx(np.sqrt(np.sqrt(np.log(20.0)) / 21.0), rel=1e-12)
     assert np.exp(-((r**2 * 21) ** 2)) == pytest.approx(0.05, rel=1e-9)
-    assert op.identifiable_roughness(6) > op.identifiable_roughness(16) > r
+    assert identifiable_roughness(6) > identifiable_roughness(16) > r
     with pytest.raises(ValueError, match="tail must be in"):
-        op.identifiable_roughness(20, tail=1.0)
+        identifiable_roughness(20, tail=1.0)
     # GGX's sharp peak keeps more above l*: 5% of its weight there at a larger roughness
-    r_ggx = op.identifiable_roughness(20, lobe="ggx")
+    r_ggx = identifiable_roughness(20, lobe="ggx")
     f = ggx_lobe_spectrum(np.array([r_ggx**2, (r_ggx - 0.01) ** 2]), 400)[0] * (2 * np.arange(401) + 1)
     share = f[:, 21:].sum(axis=1) / f.sum(axis=1)
     assert r_ggx > r + 0.05 and share[0] < 0.05 < share[1]
@@ -654,5 +653,5 @@ def test_partial_refit_matches_a_full_fit_of_the_moved_texels(small: dict) -> No
     moved = np.array([1, 5, 6, 11])
     r2[problem.observed[moved]] += 0.05
     flat = terms(small, problem, r1, True)
-    op.refit_light(flat, r2, problem, small["light"], moved, workers=1)
+    refit_light(flat, r2, problem, small["light"], moved, workers=1)
     np.testing.assert_allclose(flat, terms(small, problem, r2, True), rtol=1e-5, atol=1e-6)

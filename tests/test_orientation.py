@@ -3,15 +3,16 @@
 import numpy as np
 import pytest
 
-from freqbrdf.envmaps import studio
-from freqbrdf.orientation import (
+from freqbrdf.scene.envmaps import studio
+from freqbrdf.capture.orientation import (
     band_limited_coeffs,
     best_azimuth,
     explained_variance,
     irradiance_coeffs,
     rotate_azimuth,
 )
-from freqbrdf.sh import eval_sh, fibonacci_sphere, project_equirect
+from freqbrdf.sphere.sh import eval_sh, project_equirect
+from freqbrdf.sphere.sampling import fibonacci_sphere
 
 W = 64
 

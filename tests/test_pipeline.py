@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
-from freqbrdf.cameras import cameras_from_json, project
-from freqbrdf.io import read_exr, read_json, read_png
-from freqbrdf.meshes import read_ply
-from freqbrdf.tables import SUMMARY_KEYS
+from freqbrdf.scene.cameras import cameras_from_json, project
+from freqbrdf.util.io import read_exr, read_json, read_png
+from freqbrdf.scene.ply import read_ply
+from freqbrdf.report.tables.summary import SUMMARY_KEYS
 from synthetic import rewrite_z_up
 
 
@@ -345,9 +345,9 @@ def test_report_figures_are_written_per_capture(run):
 
 def test_gltf_files_environments_and_viewers_are_written_per_capture(repo, run):
     from freqbrdf.artefacts import read_svbrdf
-    from freqbrdf.gltf import read_glb
-    from freqbrdf.colour import to_srgb
-    from freqbrdf.rgbe import read_hdr
+    from freqbrdf.export.gltf import read_glb
+    from freqbrdf.util.colour import to_srgb
+    from freqbrdf.export.rgbe import read_hdr
 
     truth = read_glb(run / "results/gltf/sphere/truth.glb")
     exr = read_svbrdf(run / "results/objects/sphere")
@@ -460,7 +460,7 @@ def _orb_fixture(export, root, roll_columns):
     """An exchange-layout capture in Stanford-ORB's conventions, from a capture this project exported."""
     import shutil
 
-    from freqbrdf.io import write_exr
+    from freqbrdf.util.io import write_exr
 
     shutil.copytree(export, root)
     (root / "mesh.ply").unlink()
@@ -526,7 +526,7 @@ def test_z_up_capture_with_a_turned_environment_matches_the_original(orb):
     import pandas as pd
 
     from freqbrdf.artefacts import read_observations, read_svbrdf
-    from freqbrdf.metrics import parameter_mse
+    from freqbrdf.report.metrics import parameter_mse
 
     work, original = orb["workdir"] / "results", orb["original"] / "results"
     scores = pd.read_csv(work / "imports/orb/env_orientation.tsv", sep="\t")
@@ -550,7 +550,7 @@ def test_z_up_capture_with_a_turned_environment_matches_the_original(orb):
 def test_real_test_views_are_relit_under_their_own_turned_maps_and_scored(orb):
     import pandas as pd
 
-    from freqbrdf.io import read_png
+    from freqbrdf.util.io import read_png
 
     work = orb["workdir"] / "results"
     for name in ("0000", "0001"):
@@ -568,7 +568,7 @@ def test_real_test_views_are_relit_under_their_own_turned_maps_and_scored(orb):
 def test_a_changed_file_inside_a_capture_is_re_imported(repo, orb):
     import os
 
-    from freqbrdf.io import write_png
+    from freqbrdf.util.io import write_png
 
     mask = orb["source"] / "train_mask/0001.png"
     stat = mask.stat()

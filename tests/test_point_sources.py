@@ -1,4 +1,4 @@
-"""Point sources outside the SH light (`freqbrdf.light.extract_point_sources`, the kernels' `point` term)."""
+"""Point sources outside the SH light (`freqbrdf.estimate.light.extract_point_sources`, the kernels' `point` term)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,13 @@ import oracles
 import pytest
 from test_optimise import MODELS, OPTIMISER_METHODS, central_differences, local_hemisphere, tables, variant
 
-from freqbrdf import light as lt
-from freqbrdf import optimise as op
-from freqbrdf import sh
+from freqbrdf.estimate import light as lt
+from freqbrdf.estimate.optimise.kernels import KernelModel
+from freqbrdf.estimate.optimise.model import estimate_light, forward, light_terms, loss_and_gradient, point_terms
+from freqbrdf.estimate.optimise.problem import build_problem, pack_params
+from freqbrdf.estimate.optimise.settings import OptimiseSettings
+from freqbrdf.estimate.optimise.solve import optimise
+from freqbrdf.sphere import sampling
 from freqbrdf.artefacts import Observations
 
 H, W = 64, 128
@@ -17,7 +21,7 @@ H, W = 64, 128
 
 def sky_with_discs(centres: list[np.ndarray], radii_deg: list[float], radiances: list[float]) -> np.ndarray:
     """A sky gradient (0.2-0.3) with uniform discs of the given radius and radiance, (H, W, 3)."""
-    d = sh.equirect_directions(H, W)
+    d = sampling.equirect_directions(H, W)
     env = np.repeat(0.25 + 0.05 * d[..., 1:2], 3, axis=2)
     for centre, radius, value in zip(centres, radii_deg, radiances):
         env[d @ centre >= np.cos(np.radians(radius))] = value * np.array([1.0, 0.8, 0.6])
@@ -25,7 +29,7 @@ def sky_with_discs(centres: list[np.ndarray], radii_deg: list[float], radiances:
 
 
 def power(env: np.ndarray) -> np.ndarray:
-    return (env * sh.equirect_solid_angles(*env.shape[:2])[:, None, None]).sum(axis=(0, 1))
+    return (env * sampling.equirect_solid_angles(*env.shape[:2])[:, None, None]).sum(axis=(0, 1))
 
 
 def test_extraction_takes_compact_sources_and_conserves_power() -> None:
@@ -81,10 +85,10 @@ def test_point_term_is_the_microfacet_brdf_of_the_pixel(shadowing: bool) -> None
     assert sources.power.shape == (1, 3) and not residual.any()
     obs = Observations.from_arrays(np.zeros(capture["wo_local"].shape), capture["weight"], capture["wo_local"],
                                    capture["frame"], np.arange(n_tex), 4)
-    problem = op.build_problem(obs, lt.irradiance(env, normal), "float64")
+    problem = build_problem(obs, lt.irradiance(env, normal), "float64")
     light = np.zeros((problem.n_pairs, 9, 3))
-    point = op.point_terms(problem, sources, shadowing)
-    model = op.forward(op.pack_params(truth, n_tex), problem, light, True, point=point)
+    point = point_terms(problem, sources, shadowing)
+    model = forward(pack_params(truth, n_tex), problem, light, KernelModel(True, point=point))
     expected = oracles.ggx_radiance(env, capture, truth)
     if not shadowing:  # the oracle's G1(theta_i) divided out
         wi = capture["frame"] @ sources.directions[0]
@@ -104,18 +108,18 @@ def test_gradient_with_point_sources_matches_central_differences(method: str, mo
     radiance = rng.uniform(0.0, 2.0, capture["wo_local"].shape)
     obs = Observations.from_arrays(radiance, capture["weight"], capture["wo_local"], capture["frame"],
                                    np.arange(9), 3)
-    problem = op.build_problem(obs, lt.irradiance(env, normal), "float64")
+    problem = build_problem(obs, lt.irradiance(env, normal), "float64")
     residual, sources = lt.extract_point_sources(env, 3.0, 20.0)
     x = rng.uniform(0.25, 0.9, (9, 5))
-    light = op.light_terms(x[:, 3], problem, shadowing, lt.light_quadrature(residual, 8))
-    point = op.point_terms(problem, sources, shadowing)
+    light = light_terms(x[:, 3], problem, shadowing, lt.light_quadrature(residual, 8))
+    point = point_terms(problem, sources, shadowing)
     table, view = tables(model, method)
 
     def loss(xx: np.ndarray) -> float:
-        return op.loss_and_gradient(xx, problem, light, masking, 0.0, lobe=table, view=view, point=point)[0]
+        return loss_and_gradient(xx, problem, light, KernelModel(masking, table, view, point), 0.0)[0]
 
-    _, grad = op.loss_and_gradient(x, problem, light, masking, 0.0, lobe=table, view=view, point=point)
-    _, without = op.loss_and_gradient(x, problem, light, masking, 0.0, lobe=table, view=view)
+    _, grad = loss_and_gradient(x, problem, light, KernelModel(masking, table, view, point), 0.0)
+    _, without = loss_and_gradient(x, problem, light, KernelModel(masking, table, view), 0.0)
     assert np.abs(grad - without).max() > 1e-3  # the source contributes
     fd = central_differences(loss, x)
     np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-8)
@@ -125,11 +129,11 @@ def test_point_terms_are_checked() -> None:
     capture, env, normal = one_pixel_scene(n_tex=4, n_views=6)
     obs = Observations.from_arrays(np.zeros(capture["wo_local"].shape), capture["weight"], capture["wo_local"],
                                    capture["frame"], np.arange(4), 2)
-    problem = op.build_problem(obs, lt.irradiance(env, normal), "float64")
-    assert op.point_terms(problem, lt.PointSources(np.zeros((0, 3)), np.zeros((0, 3))), True) is None
-    wo, src = op.point_terms(problem, lt.extract_point_sources(env, 3.0, 20.0)[1], True)
+    problem = build_problem(obs, lt.irradiance(env, normal), "float64")
+    assert point_terms(problem, lt.PointSources(np.zeros((0, 3)), np.zeros((0, 3))), True) is None
+    wo, src = point_terms(problem, lt.extract_point_sources(env, 3.0, 20.0)[1], True)
     with pytest.raises(ValueError, match="point must be"):
-        op.forward(np.full((4, 5), 0.5), problem, np.zeros((problem.n_pairs, 3, 3)), True, point=(wo[1:], src))
+        forward(np.full((4, 5), 0.5), problem, np.zeros((problem.n_pairs, 3, 3)), KernelModel(True, point=(wo[1:], src)))
 
 
 def test_estimate_light_keeps_point_sources_out_of_the_paper_light() -> None:
@@ -138,11 +142,11 @@ def test_estimate_light_keeps_point_sources_out_of_the_paper_light() -> None:
     obs = Observations.from_arrays(np.zeros(capture["wo_local"].shape), capture["weight"], capture["wo_local"],
                                    capture["frame"], np.arange(4), 2)
     settings = {"max_radius_deg": 3.0, "min_radiance": 20.0}
-    light, e = op.estimate_light(env, obs, "freq", 8, settings)
+    light, e = estimate_light(env, obs, "freq", 8, settings)
     assert light.sources.power.shape == (1, 3)
     np.testing.assert_allclose(e, lt.irradiance(env, normal))  # the diffuse term sees the whole map
-    assert op.estimate_light(env, obs, "freq_paper", 8, settings)[0].sources is None  # the paper's light
-    assert op.estimate_light(env, obs, "freq", 8, {"max_radius_deg": 0.0, "min_radiance": 20.0})[0].sources is None
+    assert estimate_light(env, obs, "freq_paper", 8, settings)[0].sources is None  # the paper's light
+    assert estimate_light(env, obs, "freq", 8, {"max_radius_deg": 0.0, "min_radiance": 20.0})[0].sources is None
 
 
 def test_point_sources_recover_the_metals_that_the_sun_through_the_sh_does_not() -> None:
@@ -157,19 +161,19 @@ def test_point_sources_recover_the_metals_that_the_sun_through_the_sh_does_not()
     """
     from test_light import oracle_capture
 
-    d = sh.equirect_directions(H, W)
+    d = sampling.equirect_directions(H, W)
     env = np.repeat(0.3 + 0.1 * d[..., 1:2], 3, axis=2)
     env[12, 50] = 60000.0  # the sun, about 30 degrees up, most of the map's power
     capture, truth = oracle_capture(env, seed=5)
     capture["radiance"] = np.where(capture["weight"][..., None] > 0, oracles.ggx_radiance(env, capture, truth), 0.0)
     obs = Observations.from_arrays(*(capture[k] for k in ("radiance", "weight", "wo_local", "frame", "texel",
                                                            "resolution")))
-    settings = op.OptimiseSettings(lobe="ggx", diffuse="principled", iterations=300, lr=0.01, tv_weight=0.0)
+    settings = OptimiseSettings(lobe="ggx", diffuse="principled", iterations=300, lr=0.01, tv_weight=0.0)
     metal = truth["metallic"] == 1.0
     errors = {}
     for name, sources in (("sh", None), ("point", {"max_radius_deg": 3.0, "min_radiance": 20.0})):
-        light, e = op.estimate_light(env, obs, "freq", 20, sources)
-        est, _ = op.optimise(obs, e, light, None, "freq", settings)
+        light, e = estimate_light(env, obs, "freq", 20, sources)
+        est, _ = optimise(obs, e, light, None, "freq", settings)
         errors[name] = {g: np.abs(est[g] - truth[g])[metal].mean() for g in ("roughness", "metallic")}
     assert errors["point"]["metallic"] < 0.5 * errors["sh"]["metallic"]
     assert errors["point"]["roughness"] < 0.75 * errors["sh"]["roughness"]

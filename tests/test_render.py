@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from freqbrdf.cameras import Cameras, hemisphere_rig, intrinsics, look_at, mitsuba_to_world, project
-from freqbrdf.meshes import make_mesh, write_ply
-from freqbrdf.render import (
+from freqbrdf.scene.cameras import Cameras, hemisphere_rig, intrinsics, look_at, mitsuba_to_world, project
+from freqbrdf.scene.meshes import make_mesh
+from freqbrdf.scene.ply import write_ply
+from freqbrdf.scene.render import (
     capture_bsdf,
     eval_environment,
     capture_scene,
@@ -16,7 +17,7 @@ from freqbrdf.render import (
     render_views,
     sunsky,
 )
-from freqbrdf.sh import equirect_directions
+from freqbrdf.sphere.sampling import equirect_directions
 
 SIZE = 64
 FOV = 35.0
@@ -137,7 +138,7 @@ def test_equirect_grid_matches_mitsuba_envmap(mi):
 
 
 def test_sunsky_puts_the_sun_where_asked(mi):
-    from freqbrdf.envmaps import direction_from_angles
+    from freqbrdf.scene.envmaps import direction_from_angles
 
     sun = direction_from_angles(30.0, 120.0)
     sky = sunsky(mi, 64, sun, turbidity=3.0)
@@ -220,7 +221,7 @@ def test_capture_bsdf_rejects_unknown_models_and_a_clear_coat_on_a_blend(mi):
 def test_occluder_disk_darkens_a_white_sphere_by_the_light_it_blocks(mi, sphere_ply):
     # Under unit radiance a convex white Lambertian point reflects 1 minus the cosine-weighted
     # share of its sky the disk hides: blocked_light, computed independently of Mitsuba.
-    from freqbrdf.stress import blocked_light
+    from freqbrdf.studies.stress import blocked_light
 
     white = {"type": "diffuse", "reflectance": {"type": "rgb", "value": 1.0}}
     env = np.ones((32, 64, 3), np.float32)

@@ -11,10 +11,10 @@ import pytest
 from scipy.ndimage import gaussian_filter
 from scipy.spatial.transform import Rotation
 
-from freqbrdf import sfm
-from freqbrdf.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsics, mitsuba_to_world, project
-from freqbrdf.io import read_png, write_exr, write_json, write_png
-from freqbrdf.colour import tonemap
+from freqbrdf.capture import sfm, sfm_alignment, sfm_options
+from freqbrdf.scene.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsics, mitsuba_to_world, project
+from freqbrdf.util.io import read_png, write_exr, write_json, write_png
+from freqbrdf.util.colour import tonemap
 
 
 def make_rig(n: int = 12, size: int = 64) -> Cameras:
@@ -39,7 +39,7 @@ def similarity(scale: float, rotvec, t) -> np.ndarray:
 
 def test_pose_errors_of_identical_cameras_are_zero():
     ref = make_rig()
-    errors = sfm.pose_errors(ref, ref)
+    errors = sfm_alignment.pose_errors(ref, ref)
     assert list(errors["name"]) == list(ref.names)
     np.testing.assert_allclose(errors["rotation_error_deg"], 0.0, atol=1e-5)
     np.testing.assert_allclose(errors["centre_error_rel"], 0.0, atol=1e-12)
@@ -52,7 +52,7 @@ def test_pose_errors_measure_one_camera_turned_by_two_degrees():
     turn = Rotation.from_rotvec(np.radians(2.0) * np.array([0.6, 0.0, 0.8])).as_matrix()
     w2c[3, :3, :] = turn @ w2c[3, :3, :]  # rotates the camera about its own centre
     est = dataclasses.replace(ref, world_to_camera=w2c)
-    errors = sfm.pose_errors(est, ref, reprojection={"003": 0.25})
+    errors = sfm_alignment.pose_errors(est, ref, reprojection={"003": 0.25})
     assert errors["rotation_error_deg"][3] == pytest.approx(2.0, abs=1e-6)
     assert np.delete(errors["rotation_error_deg"].to_numpy(), 3) == pytest.approx(0.0, abs=1e-5)
     np.testing.assert_allclose(errors["centre_error_rel"], 0.0, atol=1e-12)
@@ -64,7 +64,7 @@ def test_pose_errors_measure_centre_offsets_relative_to_the_camera_distance():
     w2c = ref.world_to_camera.copy()
     shift = np.array([0.0, 0.12, -0.16])  # 0.2 = 5% of the camera distance 4
     w2c[5, :3, 3] -= w2c[5, :3, :3] @ shift  # centre moves by +shift, axes unchanged
-    errors = sfm.pose_errors(dataclasses.replace(ref, world_to_camera=w2c), ref)
+    errors = sfm_alignment.pose_errors(dataclasses.replace(ref, world_to_camera=w2c), ref)
     assert errors["centre_error_rel"][5] == pytest.approx(0.05)
     assert errors["rotation_error_deg"][5] == pytest.approx(0.0, abs=1e-5)
 
@@ -72,16 +72,16 @@ def test_pose_errors_measure_centre_offsets_relative_to_the_camera_distance():
 def test_pose_errors_accept_a_subset_and_reject_unknown_views():
     ref = make_rig()
     subset = Cameras(ref.K[[2, 7]], ref.world_to_camera[[2, 7]], ref.width, ref.height, ("002", "007"))
-    assert list(sfm.pose_errors(subset, ref)["name"]) == ["002", "007"]
+    assert list(sfm_alignment.pose_errors(subset, ref)["name"]) == ["002", "007"]
     stranger = dataclasses.replace(subset, names=("002", "999"))
     with pytest.raises(ValueError, match="'999'"):
-        sfm.pose_errors(stranger, ref)
+        sfm_alignment.pose_errors(stranger, ref)
 
 
 def test_transform_world_to_camera_undoes_a_similarity_and_keeps_projections():
     ref = make_rig()
     S = similarity(0.37, [0.3, -1.1, 0.4], [0.5, -2.0, 1.5])
-    est = sfm.transform_world_to_camera(ref.world_to_camera, np.linalg.inv(S))  # a "reconstruction" frame
+    est = sfm_alignment.transform_world_to_camera(ref.world_to_camera, np.linalg.inv(S))  # a "reconstruction" frame
     # The same points, expressed in that frame, project to the same pixels.
     points = np.random.default_rng(0).uniform(-0.7, 0.7, size=(20, 3))
     points_est = points @ np.linalg.inv(S)[:3, :3].T + np.linalg.inv(S)[:3, 3]
@@ -90,9 +90,9 @@ def test_transform_world_to_camera_undoes_a_similarity_and_keeps_projections():
         b, _ = project(points_est, ref.K[k], est[k])
         np.testing.assert_allclose(a, b, atol=1e-9)
     np.testing.assert_allclose(est[:, :3, :3] @ np.swapaxes(est[:, :3, :3], 1, 2), np.repeat(np.eye(3)[None], 12, 0), atol=1e-12)
-    back = sfm.transform_world_to_camera(est, S)
+    back = sfm_alignment.transform_world_to_camera(est, S)
     np.testing.assert_allclose(back, ref.world_to_camera, atol=1e-12)
-    errors = sfm.pose_errors(dataclasses.replace(ref, world_to_camera=back), ref)
+    errors = sfm_alignment.pose_errors(dataclasses.replace(ref, world_to_camera=back), ref)
     assert errors["rotation_error_deg"].max() < 1e-5 and errors["centre_error_rel"].max() < 1e-12
 
 
@@ -105,14 +105,14 @@ def test_summarise_medians_and_fraction():
             "reprojection_error_px": [0.4, 0.6, np.nan],
         }
     )
-    s = sfm.summarise(errors, 4)
+    s = sfm_alignment.summarise(errors, 4)
     assert s["registered"] == 3 and s["registered_fraction"] == 0.75
     assert s["median_rotation_error_deg"] == pytest.approx(0.5)
     assert s["median_centre_error_rel"] == pytest.approx(0.002)
     assert s["mean_reprojection_error_px"] == pytest.approx(0.5)
-    assert np.isnan(sfm.summarise(errors.drop(columns="reprojection_error_px"), 3)["mean_reprojection_error_px"])
+    assert np.isnan(sfm_alignment.summarise(errors.drop(columns="reprojection_error_px"), 3)["mean_reprojection_error_px"])
     with pytest.raises(ValueError, match="3 registered views but only 2"):
-        sfm.summarise(errors, 2)
+        sfm_alignment.summarise(errors, 2)
 
 
 def test_check_registration_names_counts_and_config_keys():
@@ -123,51 +123,51 @@ def test_check_registration_names_counts_and_config_keys():
     assert "11 of 24" in message
     keys = {k.removeprefix("poses.colmap.") for k in message.replace(",", " ").split() if k.startswith("poses.colmap.")}
     assert {"max_num_features", "peak_threshold", "init_min_num_inliers", "abs_pose_min_num_inliers"} <= keys
-    assert keys <= {f.name for f in dataclasses.fields(sfm.SfmOptions)}
+    assert keys <= {f.name for f in dataclasses.fields(sfm_options.SfmOptions)}
     with pytest.raises(ValueError, match="n_registered 25"):
         sfm.check_registration(25, 24, 0.5)
 
 
 def test_check_accuracy_gates_on_median_errors_and_names_the_options():
     good = {"median_rotation_error_deg": 0.6, "median_centre_error_rel": 0.008}
-    sfm.check_accuracy(good, 1.0, 0.01)
+    sfm_alignment.check_accuracy(good, 1.0, 0.01)
     for bad in ({**good, "median_rotation_error_deg": 75.0}, {**good, "median_centre_error_rel": 0.2},
                 {**good, "median_rotation_error_deg": float("nan")}):
-        with pytest.raises(sfm.InaccuratePosesError) as info:
-            sfm.check_accuracy(bad, 1.0, 0.01)
+        with pytest.raises(sfm_alignment.InaccuratePosesError) as info:
+            sfm_alignment.check_accuracy(bad, 1.0, 0.01)
         message = str(info.value)
         assert "\n" not in message and "poses.colmap.two_view_max_error" in message
         assert "poses.max_median_rotation_deg" in message
-    assert "75.00 deg" in str(pytest.raises(sfm.InaccuratePosesError, sfm.check_accuracy,
+    assert "75.00 deg" in str(pytest.raises(sfm_alignment.InaccuratePosesError, sfm_alignment.check_accuracy,
                                            {**good, "median_rotation_error_deg": 75.0}, 1.0, 0.01).value)
 
 
 def test_options_validation_names_the_config_key():
     with pytest.raises(ValueError, match=r"poses\.colmap\.peak_threshold: -0\.1"):
-        sfm.SfmOptions(peak_threshold=-0.1)
+        sfm_options.SfmOptions(peak_threshold=-0.1)
     with pytest.raises(ValueError, match=r"poses\.colmap\.max_num_features: 100\.5 must be an integer"):
-        sfm.SfmOptions(max_num_features=100.5)
+        sfm_options.SfmOptions(max_num_features=100.5)
     with pytest.raises(ValueError, match=r"poses\.colmap\.camera_model"):
-        sfm.SfmOptions(camera_model="FISHEYE")
+        sfm_options.SfmOptions(camera_model="FISHEYE")
     with pytest.raises(ValueError, match=r"poses\.colmap\.max_features: unknown option"):
-        sfm.SfmOptions.from_config({"max_features": 10})
-    assert sfm.SfmOptions.from_config({"seed": 3}).seed == 3
+        sfm_options.SfmOptions.from_config({"max_features": 10})
+    assert sfm_options.SfmOptions.from_config({"seed": 3}).seed == 3
 
 
 def test_colmap_defaults_are_pycolmaps_own():
     import pycolmap
 
-    default = sfm.SfmOptions.colmap_defaults()
+    default = sfm_options.SfmOptions.colmap_defaults()
     assert default.init_min_num_inliers == pycolmap.IncrementalMapperOptions().init_min_num_inliers
     assert default.peak_threshold == pytest.approx(pycolmap.SiftExtractionOptions().peak_threshold)
     assert default.max_ratio == pytest.approx(pycolmap.SiftMatchingOptions().max_ratio)
-    tuned = sfm.SfmOptions()
+    tuned = sfm_options.SfmOptions()
     assert tuned.peak_threshold < default.peak_threshold
     assert tuned.init_min_num_inliers < default.init_min_num_inliers
 
 
 # Where each option COLMAP takes unchanged must land ("{pycolmap class}.{attribute path}"),
-# written out here independently of sfm.COLMAP_ATTRIBUTES, with a value other
+# written out here independently of sfm_options.COLMAP_ATTRIBUTES, with a value other
 # than the tuned default (numbers all distinct, so a swap shows; dyadic, so a
 # float32 attribute would hold them exactly).
 MAPPED = {
@@ -198,10 +198,10 @@ MAPPED = {
 }
 
 
-def colmap_settings(options: sfm.SfmOptions) -> dict:
+def colmap_settings(options: sfm_options.SfmOptions) -> dict:
     """Every attribute of the pycolmap option objects built from ``options``, "{class}.{path}" -> value."""
-    matching, verification = sfm.matching_options(options)
-    objects = [sfm.extraction_options(options), matching, verification, sfm.mapping_options(options, Path("images"))]
+    matching, verification = sfm_options.matching_options(options)
+    objects = [sfm_options.extraction_options(options), matching, verification, sfm_options.mapping_options(options, Path("images"))]
     settings = {}
 
     def walk(prefix: str, values: dict) -> None:
@@ -216,9 +216,9 @@ def colmap_settings(options: sfm.SfmOptions) -> dict:
     return settings
 
 
-def changed_settings(options: sfm.SfmOptions) -> dict:
+def changed_settings(options: sfm_options.SfmOptions) -> dict:
     """The pycolmap settings of ``options`` that differ from those of the tuned defaults."""
-    before, after = colmap_settings(sfm.SfmOptions()), colmap_settings(options)
+    before, after = colmap_settings(sfm_options.SfmOptions()), colmap_settings(options)
     assert before.keys() == after.keys()
     return {key: value for key, value in after.items() if value != before[key]}
 
@@ -235,8 +235,8 @@ def pycolmap_default(path: str):
 
 
 def test_every_option_field_reaches_colmap_or_is_set_explicitly():
-    names = [f.name for f in dataclasses.fields(sfm.SfmOptions)]
-    mapped, explicit = set(sfm.COLMAP_ATTRIBUTES), set(sfm.SET_EXPLICITLY)
+    names = [f.name for f in dataclasses.fields(sfm_options.SfmOptions)]
+    mapped, explicit = set(sfm_options.COLMAP_ATTRIBUTES), set(sfm_options.SET_EXPLICITLY)
     assert mapped.isdisjoint(explicit) and sorted(mapped | explicit) == sorted(names)
     assert set(MAPPED) == mapped  # this file's own list covers every mapped field
     numbers = [value for value, _ in MAPPED.values() if not isinstance(value, bool)]
@@ -244,19 +244,19 @@ def test_every_option_field_reaches_colmap_or_is_set_explicitly():
 
 
 def test_non_default_options_land_on_their_pycolmap_attributes_and_nowhere_else():
-    options = sfm.SfmOptions(**{name: value for name, (value, _) in MAPPED.items()})
-    assert all(getattr(options, name) != getattr(sfm.SfmOptions(), name) for name in MAPPED)
+    options = sfm_options.SfmOptions(**{name: value for name, (value, _) in MAPPED.items()})
+    assert all(getattr(options, name) != getattr(sfm_options.SfmOptions(), name) for name in MAPPED)
     assert changed_settings(options) == {path: value for value, path in MAPPED.values()}
 
 
 @pytest.mark.parametrize("name", sorted(MAPPED))
 def test_each_mapped_option_changes_only_its_own_pycolmap_attribute(name):
     value, path = MAPPED[name]  # one at a time, so two booleans swapped in the table show too
-    assert changed_settings(sfm.SfmOptions(**{name: value})) == {path: value}
+    assert changed_settings(sfm_options.SfmOptions(**{name: value})) == {path: value}
 
 
 def test_options_set_explicitly_reach_colmap():
-    options = sfm.SfmOptions(seed=7, num_threads=3, known_intrinsics=False, two_view_max_num_trials=40)
+    options = sfm_options.SfmOptions(seed=7, num_threads=3, known_intrinsics=False, two_view_max_num_trials=40)
     settings = colmap_settings(options)
     for owner in ("FeatureExtractionOptions", "FeatureMatchingOptions", "IncrementalPipelineOptions"):
         assert settings[f"{owner}.num_threads"] == 3
@@ -264,7 +264,7 @@ def test_options_set_explicitly_reach_colmap():
     assert settings["TwoViewGeometryOptions.ransac.min_num_trials"] == 40  # capped by max_num_trials
     refine = [f"IncrementalPipelineOptions.ba_refine_{what}" for what in ("focal_length", "extra_params")]
     assert all(settings[key] for key in refine)
-    fixed = colmap_settings(sfm.SfmOptions())
+    fixed = colmap_settings(sfm_options.SfmOptions())
     assert not any(fixed[key] for key in refine) and not fixed["IncrementalPipelineOptions.ba_refine_principal_point"]
     floor = "TwoViewGeometryOptions.ransac.min_num_trials"
     assert fixed[floor] == pycolmap_default(floor)  # the cap 2000 is above COLMAP's floor
@@ -272,15 +272,15 @@ def test_options_set_explicitly_reach_colmap():
 
 
 def test_a_pycolmap_attribute_that_is_missing_is_named_with_its_field(monkeypatch):
-    monkeypatch.setitem(sfm.COLMAP_ATTRIBUTES, "peak_threshold", "FeatureExtractionOptions.sift.peak_treshold")
+    monkeypatch.setitem(sfm_options.COLMAP_ATTRIBUTES, "peak_threshold", "FeatureExtractionOptions.sift.peak_treshold")
     named = r"poses\.colmap\.peak_threshold maps onto pycolmap\.FeatureExtractionOptions\.sift\.peak_treshold"
     with pytest.raises(AttributeError, match=named):
-        sfm.extraction_options(sfm.SfmOptions())
+        sfm_options.extraction_options(sfm_options.SfmOptions())
     monkeypatch.undo()
-    monkeypatch.setitem(sfm.COLMAP_ATTRIBUTES, "max_reg_trials", "IncrementalPipelineOptions.mappr.max_reg_trials")
+    monkeypatch.setitem(sfm_options.COLMAP_ATTRIBUTES, "max_reg_trials", "IncrementalPipelineOptions.mappr.max_reg_trials")
     named = r"poses\.colmap\.max_reg_trials .* no attribute 'mappr' on IncrementalPipelineOptions"
     with pytest.raises(AttributeError, match=named):
-        sfm.SfmOptions.colmap_defaults()
+        sfm_options.SfmOptions.colmap_defaults()
 
 
 def write_random_capture(capture, n: int, size: int, seed: int = 1):
@@ -327,13 +327,13 @@ def test_reconstruct_without_matches_raises_too_few_registered(tmp_path):
     capture = tmp_path / "capture"
     cams, _, _ = write_random_capture(capture, n=3, size=64)
     with pytest.raises(sfm.TooFewRegisteredError, match="registered 0 of 3 views") as info:
-        sfm.reconstruct(capture, tmp_path / "work", cams, sfm.SfmOptions())
+        sfm.reconstruct(capture, tmp_path / "work", cams, sfm_options.SfmOptions())
     assert "colmap.log" in str(info.value) and "poses.colmap.peak_threshold" in str(info.value)
     # With use_mask, COLMAP extracts features inside the object mask only.
     import pycolmap
 
     with pytest.raises(sfm.TooFewRegisteredError):
-        sfm.reconstruct(capture, tmp_path / "masked", cams, sfm.SfmOptions(use_mask=True))
+        sfm.reconstruct(capture, tmp_path / "masked", cams, sfm_options.SfmOptions(use_mask=True))
     db = pycolmap.Database.open(tmp_path / "masked" / "database.db")
     try:
         xy = np.concatenate([db.read_keypoints(image.image_id)[:, :2] for image in db.read_all_images()])
@@ -342,7 +342,7 @@ def test_reconstruct_without_matches_raises_too_few_registered(tmp_path):
     assert len(xy) > 0
     assert np.all((xy[:, 0] >= 3) & (xy[:, 0] <= 11) & (xy[:, 1] >= 4) & (xy[:, 1] <= 12))
     with pytest.raises(ValueError, match="is the capture directory"):
-        sfm.reconstruct(capture, capture, cams, sfm.SfmOptions())
+        sfm.reconstruct(capture, capture, cams, sfm_options.SfmOptions())
     assert (capture / "images" / "000.exr").is_file()
 
 
@@ -354,9 +354,10 @@ VIEWS, SIZE, SPP = 20, 256, 32
 @pytest.fixture(scope="module")
 def capture(mi, tmp_path_factory):
     """A sphere with a fine diffuse texture (SIFT needs one) in the studio, 20 views."""
-    from freqbrdf.envmaps import studio
-    from freqbrdf.meshes import make_mesh, write_ply
-    from freqbrdf.render import capture_scene, mask_scene, principled_bsdf, render_views
+    from freqbrdf.scene.envmaps import studio
+    from freqbrdf.scene.meshes import make_mesh
+    from freqbrdf.scene.ply import write_ply
+    from freqbrdf.scene.render import capture_scene, mask_scene, principled_bsdf, render_views
 
     out = tmp_path_factory.mktemp("capture")
     mesh = out / "sphere.ply"
@@ -386,15 +387,15 @@ def capture(mi, tmp_path_factory):
 def reconstruction(capture, tmp_path_factory):
     path, cams = capture
     work = tmp_path_factory.mktemp("sfm")
-    return sfm.reconstruct(path, work, cams, sfm.SfmOptions()), work
+    return sfm.reconstruct(path, work, cams, sfm_options.SfmOptions()), work
 
 
 def test_sfm_registers_the_capture_accurately(capture, reconstruction):
     _, ref = capture
     rec, work = reconstruction
-    estimated, S = sfm.aligned_cameras(rec, ref)
-    errors = sfm.pose_errors(estimated, ref, sfm.reprojection_errors(rec))
-    summary = sfm.summarise(errors, len(ref))
+    estimated, S = sfm_alignment.aligned_cameras(rec, ref)
+    errors = sfm_alignment.pose_errors(estimated, ref, sfm_alignment.reprojection_errors(rec))
+    summary = sfm_alignment.summarise(errors, len(ref))
     assert summary["registered_fraction"] >= 0.9, summary
     assert summary["median_rotation_error_deg"] < 1.0, summary
     assert summary["median_centre_error_rel"] < 0.015, summary
@@ -412,11 +413,11 @@ def test_alignment_undoes_a_known_similarity_of_the_reconstruction(capture, reco
 
     _, ref = capture
     rec, _ = reconstruction
-    cams, S = sfm.aligned_cameras(rec, ref)
+    cams, S = sfm_alignment.aligned_cameras(rec, ref)
     T = similarity(2.5, [0.2, 0.9, -0.4], [3.0, -1.0, 0.5])
     moved = pycolmap.Reconstruction(rec)
     moved.transform(pycolmap.Sim3d(T[:3, :]))
-    cams2, S2 = sfm.aligned_cameras(moved, ref)
+    cams2, S2 = sfm_alignment.aligned_cameras(moved, ref)
     assert cams2.names == cams.names
     np.testing.assert_allclose(cams2.world_to_camera, cams.world_to_camera, atol=1e-6)
     np.testing.assert_allclose(S2 @ T, S, atol=1e-6)
@@ -427,14 +428,14 @@ def test_reconstruct_is_repeatable_quiet_and_logs_phases(capture, reconstruction
     rec, _ = reconstruction
     log = logging.getLogger("test_sfm")
     with caplog.at_level(logging.INFO, logger="test_sfm"):
-        again = sfm.reconstruct(path, tmp_path, ref, sfm.SfmOptions(), log=log)
-    assert sorted(sfm.registered_poses(rec)) == sorted(sfm.registered_poses(again))
+        again = sfm.reconstruct(path, tmp_path, ref, sfm_options.SfmOptions(), log=log)
+    assert sorted(sfm_alignment.registered_poses(rec)) == sorted(sfm_alignment.registered_poses(again))
     # Usually bit-identical; COLMAP's thread scheduling has moved an entry of the
     # unaligned pose by up to 2.4e-2 (sfm module docstring), partly a change of the
     # reconstruction's gauge. So compare what the pipeline uses, the cameras aligned
     # to the reference: a wrong registration turns a view by order 1 and moves its
     # centre by the order of the camera distance.
-    first, second = sfm.aligned_cameras(rec, ref)[0], sfm.aligned_cameras(again, ref)[0]
+    first, second = sfm_alignment.aligned_cameras(rec, ref)[0], sfm_alignment.aligned_cameras(again, ref)[0]
     assert first.names == second.names
     np.testing.assert_allclose(first.world_to_camera[:, :3, :3], second.world_to_camera[:, :3, :3], rtol=0, atol=0.02)
     distance = np.median(np.linalg.norm(ref.centres, axis=1))
@@ -444,4 +445,4 @@ def test_reconstruct_is_repeatable_quiet_and_logs_phases(capture, reconstruction
     messages = " | ".join(r.getMessage() for r in caplog.records)
     for phase in ("tone-mapped", "SIFT", "matching", "incremental mapping"):
         assert phase in messages
-    json.dumps(sfm.summarise(sfm.pose_errors(sfm.aligned_cameras(again, ref)[0], ref), len(ref)))  # JSON-ready
+    json.dumps(sfm_alignment.summarise(sfm_alignment.pose_errors(sfm_alignment.aligned_cameras(again, ref)[0], ref), len(ref)))  # JSON-ready

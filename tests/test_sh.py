@@ -1,4 +1,4 @@
-"""Tests for freqbrdf.sh (real spherical harmonics, equirect quadrature)."""
+"""Tests for freqbrdf.sphere.sh (real spherical harmonics) and freqbrdf.sphere.sampling (equirect quadrature, Fibonacci points)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from scipy.special import sph_harm_y
 from scipy.spatial.transform import Rotation
 
-from freqbrdf import sh
+from freqbrdf.sphere import sampling, sh
 
 LMAX = 8
 K = (LMAX + 1) ** 2
@@ -118,8 +118,8 @@ def test_angle_conversions():
 # --------------------------------------------------------------------------
 def test_orthonormal_equirect_quadrature():
     h, w = 512, 1024
-    y = sh.real_sh(sh.equirect_directions(h, w), LMAX).reshape(-1, K)
-    wts = np.repeat(sh.equirect_solid_angles(h, w), w)
+    y = sh.real_sh(sampling.equirect_directions(h, w), LMAX).reshape(-1, K)
+    wts = np.repeat(sampling.equirect_solid_angles(h, w), w)
     gram = (y * wts[:, None]).T @ y
     assert np.max(np.abs(gram - np.eye(K))) < 1e-3
 
@@ -141,7 +141,7 @@ def test_orthonormal_gauss_legendre_quadrature():
 # --------------------------------------------------------------------------
 @pytest.mark.parametrize("h, w", [(2, 1), (3, 4), (64, 128), (257, 512), (1000, 2000)])
 def test_equirect_solid_angles(h, w):
-    sa = sh.equirect_solid_angles(h, w)
+    sa = sampling.equirect_solid_angles(h, w)
     assert sa.shape == (h,)
     assert np.all(sa > 0)
     assert abs(w * sa.sum() - 4.0 * np.pi) < 1e-12
@@ -157,7 +157,7 @@ def test_equirect_solid_angles(h, w):
 
 def test_equirect_directions():
     h, w = 9, 16
-    d = sh.equirect_directions(h, w)
+    d = sampling.equirect_directions(h, w)
     assert d.shape == (h, w, 3)
     np.testing.assert_array_equal(d[0], np.tile([0.0, 1.0, 0.0], (w, 1)))
     np.testing.assert_array_equal(d[-1], np.tile([0.0, -1.0, 0.0], (w, 1)))
@@ -185,7 +185,7 @@ def test_project_equirect_recovers_coefficients():
     h, w = 512, 1024
     rng = np.random.default_rng(5)
     coeffs = rng.normal(size=(K, 3))
-    img = sh.eval_sh(coeffs, sh.equirect_directions(h, w))
+    img = sh.eval_sh(coeffs, sampling.equirect_directions(h, w))
     assert img.shape == (h, w, 3)
     rec = sh.project_equirect(img, LMAX)
     assert rec.shape == (K, 3)
@@ -220,7 +220,7 @@ def test_eval_sh_shapes_and_values():
 def test_equirect_factors_multiply_to_real_sh_on_the_grid():
     h, w, lmax = 9, 14, 5
     polar, azimuthal = sh.equirect_factors(h, w, lmax)
-    y = sh.real_sh(sh.equirect_directions(h, w), lmax)  # (h, w, n)
+    y = sh.real_sh(sampling.equirect_directions(h, w), lmax)  # (h, w, n)
     for l in range(lmax + 1):
         for m in range(-l, l + 1):
             np.testing.assert_allclose(polar[:, None, m + lmax, l] * azimuthal[None, :, m + lmax],
@@ -235,7 +235,7 @@ def test_filter_equirect_equals_projection_then_evaluation(h, w):
     img = rng.gamma(0.5, size=(h, w, 3))  # rough: energy up to the grid's limit
     gains = np.exp(-((0.3 * np.arange(LMAX + 1)) ** 2))
     direct = sh.eval_sh(sh.project_equirect(img, LMAX) * gains[sh.sh_degrees(LMAX)][:, None],
-                        sh.equirect_directions(h, w))
+                        sampling.equirect_directions(h, w))
     np.testing.assert_allclose(sh.filter_equirect(img, gains), direct, rtol=0, atol=1e-12 * np.abs(direct).max())
 
 
@@ -257,7 +257,7 @@ def test_power_spectrum_rotation_invariant():
     rng = np.random.default_rng(9)
     coeffs = rng.normal(size=K)
     rot = Rotation.random(random_state=10).as_matrix()
-    pts = sh.fibonacci_sphere(4000)
+    pts = sampling.fibonacci_sphere(4000)
     # g(d) = f(R^T d); with row vectors R^T d == d @ R
     g = sh.eval_sh(coeffs, pts @ rot)
     fitted, *_ = np.linalg.lstsq(sh.real_sh(pts, LMAX), g, rcond=None)
@@ -274,7 +274,7 @@ def test_power_spectrum_rotation_invariant():
 # --------------------------------------------------------------------------
 def test_fibonacci_sphere():
     n = 5000
-    p = sh.fibonacci_sphere(n)
+    p = sampling.fibonacci_sphere(n)
     assert p.shape == (n, 3)
     np.testing.assert_allclose(np.linalg.norm(p, axis=-1), 1.0, atol=1e-14)
     assert np.all(np.abs(p.mean(axis=0)) < 1e-3)
@@ -285,7 +285,7 @@ def test_fibonacci_sphere():
 
 def test_fibonacci_hemisphere():
     n = 3000
-    p = sh.fibonacci_hemisphere(n)
+    p = sampling.fibonacci_hemisphere(n)
     assert p.shape == (n, 3)
     assert np.all(p[:, 1] > 0)
     np.testing.assert_allclose(np.linalg.norm(p, axis=-1), 1.0, atol=1e-14)
@@ -321,4 +321,4 @@ def test_bad_inputs_raise():
     with pytest.raises(TypeError):
         sh.real_sh(np.zeros((5, 3)), 2.0)
     with pytest.raises(ValueError):
-        sh.equirect_solid_angles(1, 8)
+        sampling.equirect_solid_angles(1, 8)

@@ -1,4 +1,4 @@
-"""Tests for freqbrdf.shfit (regularised SH fits of sparse weighted samples, paper Fig. 3)."""
+"""Tests for freqbrdf.estimate.shfit (regularised SH fits of sparse weighted samples, paper Fig. 3)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from synthetic import filter_coeffs, random_unit, upper_hemisphere
-from freqbrdf import sh, shfit
+from freqbrdf.sphere import sampling, sh
+from freqbrdf.estimate import shfit
 
 LMAX = 6
 A_PRIME = 24**-0.5  # band limit of 24 views (paper rule)
@@ -27,7 +28,7 @@ def test_band_limited_function_is_recovered(regulariser: str, lam: float) -> Non
     rng = np.random.default_rng(0)
     n = sh.n_coeffs(LMAX)
     truth = rng.normal(size=(2, n, 3))
-    d = np.broadcast_to(sh.fibonacci_sphere(300), (2, 300, 3))
+    d = np.broadcast_to(sampling.fibonacci_sphere(300), (2, 300, 3))
     values = np.einsum("tki,tic->tkc", sh.real_sh(d, LMAX), truth)
     fit = shfit.fit_sh(d, values, np.ones((2, 300)), LMAX, regulariser, lam)
     assert fit.shape == (2, n, 3)
@@ -153,7 +154,7 @@ FIG3_LTRUE = 16
 
 @pytest.fixture(scope="module")
 def sphere_quadrature() -> tuple[np.ndarray, np.ndarray]:
-    pts = sh.fibonacci_sphere(20000)
+    pts = sampling.fibonacci_sphere(20000)
     return pts, sh.real_sh(pts, FIG3_LTRUE)
 
 

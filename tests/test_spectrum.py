@@ -1,4 +1,4 @@
-"""Tests for freqbrdf.spectrum (spectrum-only estimate, entropy, degree 0; paper Fig. 4)."""
+"""Tests for freqbrdf.estimate.spectrum (spectrum-only estimate, entropy, degree 0; paper Fig. 4)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import pytest
 
 import oracles
 from synthetic import filter_coeffs, random_unit, upper_hemisphere
-from freqbrdf import sh, shfit, spectrum
+from freqbrdf.sphere import sampling, sh
+from freqbrdf.estimate import shfit, spectrum
 
 LMAX = 6
 A_PRIME = 24**-0.5  # band limit of 24 views (paper rule)
@@ -172,7 +173,7 @@ def test_combine_modes() -> None:
 # degree 0: irradiance and diffuse albedo
 # --------------------------------------------------------------------------
 def test_clamped_cosine_kernel_and_irradiance() -> None:
-    pts = sh.fibonacci_sphere(200000)
+    pts = sampling.fibonacci_sphere(200000)
     for normal in ([0.0, 0.0, 1.0], [0.3, -0.5, 0.8]):
         n = np.array(normal) / np.linalg.norm(normal)
         quad = (sh.real_sh(pts, LMAX) * np.maximum(pts @ n, 0.0)[:, None]).mean(0) * 4 * np.pi
@@ -244,7 +245,7 @@ def test_full_pipeline_recovers_lobe_and_albedo_from_full_sphere_samples() -> No
     # fit -> spectra -> grid search -> degree 0 must return the truth.
     rng = np.random.default_rng(9)
     ks_values, alpha_values = spectrum.default_grid(8, 8, A_PRIME)
-    d = sh.fibonacci_sphere(300)
+    d = sampling.fibonacci_sphere(300)
     y = sh.real_sh(d, LMAX)
     env = fig4_light(LMAX, 0.2, 0.1)[:, None] * np.array([1.0, 0.8, 0.6])
     env = env + 1e-3 * rng.normal(size=env.shape)
@@ -305,7 +306,7 @@ def test_fig4_cases_with_the_benchmark_environments() -> None:
     a quarter of it at degree 1, where exp(-2 alpha^2) falls from 1 to 0.14 over the grid, which
     sigma = 0.01 resolves (README "Entropy"). The paper's ordering holds for all four.
     """
-    from freqbrdf import envmaps
+    from freqbrdf.scene import envmaps
 
     lamps = environment_spectrum(envmaps.normalise(envmaps.museum(256, seed=2), 1.0))
     sky = environment_spectrum(envmaps.normalise(envmaps.overcast(256), 1.0))
@@ -323,7 +324,7 @@ def test_fig4_cases_with_the_benchmark_environments() -> None:
 def test_reference_normalisation_depends_on_brightness_and_ours_does_not() -> None:
     """The authors' D (mean over degrees times the outgoing DC power squared) makes a brighter
     texel more certain; ours, divided by the light's power, gives the same entropy at any scale."""
-    from freqbrdf import envmaps
+    from freqbrdf.scene import envmaps
 
     s_l = environment_spectrum(envmaps.normalise(envmaps.overcast(256), 1.0))
     ours = [entropy_of(s_l * c, 0.5) for c in (0.1, 1.0, 10.0)]

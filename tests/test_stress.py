@@ -5,11 +5,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from freqbrdf import envmaps
-from freqbrdf.sh import project_equirect, sh_degrees
-from freqbrdf.stress import (ambiguity_pairs, blocked_light, image_psnr, pair_table, pose_effect_table, region_table, stress_description,
+from freqbrdf.scene import envmaps
+from freqbrdf.sphere.sh import project_equirect, sh_degrees
+from freqbrdf.studies.stress import (ambiguity_pairs, blocked_light, image_psnr, pair_table, pose_effect_table, region_table, stress_description,
                              stress_reference, stress_table)
-from freqbrdf.tables import check_tidy
+from freqbrdf.report.tables.tidy import check_tidy
 
 
 def test_a_disk_under_a_downward_point_blocks_the_cosine_weighted_share_of_its_cone():

@@ -10,9 +10,15 @@ import pandas as pd
 import pytest
 import yaml
 
-from freqbrdf import tables
 from freqbrdf.methods import METHODS, ablation_method, paper_method
-from freqbrdf.tables import check_tidy, claims, parameter_table, read_paper_results, relighting_table
+from freqbrdf.report.tables.claims import claims
+from freqbrdf.report.tables.display import MISSING, NOT_RUN, fmt_paper
+from freqbrdf.report.tables.paper import ClaimCriteria, PaperResultsError, read_paper_results
+from freqbrdf.report.tables.render import HTML_STYLE, html_page, latex_escape, to_html, to_latex, to_markdown
+from freqbrdf.report.tables.summary import SUMMARY_KEYS, run_facts, run_summary_html, summaries
+from freqbrdf.report.tables.tables import (ablation_table, agreement_table, finetune_table, headline_table, merge_table,
+                                           parameter_table, relighting_table)
+from freqbrdf.report.tables.tidy import check_tidy, equal_accuracy_ratio, speed_ratio, views_sweep
 
 PAPER_FILE = Path(__file__).resolve().parents[1] / "config" / "paper_results.yaml"
 PAPER = read_paper_results(PAPER_FILE)
@@ -102,19 +108,19 @@ def test_parameter_table_puts_means_and_paper_values_in_the_right_cells():
     assert cell(table, "BRDF log-RMSE", Method="Ours (freq)", source="here") == "0.600"
     assert cell(table, "Base SI-PSNR", Method="Ours (freq)", source="here") == "25.50"
     assert cell(table, "Base SI-SSIM", Method="Ours (freq)", source="here") == "0.800"
-    assert cell(table, "BRDF log-RMSE", Method="Ours (freq)", source="paper") == tables.MISSING
-    assert cell(table, "BRDF log-RMSE", Method="Ours-Spectrum Only (spectrum)", source="here") == tables.MISSING
-    assert cell(table, "Base SI-PSNR", Method="Mitsuba (mitsuba)", source="here") == tables.NOT_RUN
-    assert cell(table, "Base SI-SSIM", Method="Error-entropy correlation (freq)", source="here") == tables.MISSING
+    assert cell(table, "BRDF log-RMSE", Method="Ours (freq)", source="paper") == MISSING
+    assert cell(table, "BRDF log-RMSE", Method="Ours-Spectrum Only (spectrum)", source="here") == MISSING
+    assert cell(table, "Base SI-PSNR", Method="Mitsuba (mitsuba)", source="here") == NOT_RUN
+    assert cell(table, "Base SI-SSIM", Method="Error-entropy correlation (freq)", source="here") == MISSING
     # the paper's values for the environment of the same kind
     assert cell(table, studio, Method="Ours (freq)", source="paper") == "0.07 (0.02, 0.09, 0.10)"
     assert cell(table, sunny, Method="Ours (freq)", source="paper") == "0.05 (0.01, 0.05, 0.08)"
     assert cell(table, "Time", Method="Mitsuba (mitsuba)", source="paper") == "105 s"
     assert cell(table, "Avg.", Method="Ours-Spectrum Only (spectrum)", source="here").startswith("0.500")
     # Mitsuba is not in this run
-    assert cell(table, studio, Method="Mitsuba (mitsuba)", source="here") == tables.NOT_RUN
+    assert cell(table, studio, Method="Mitsuba (mitsuba)", source="here") == NOT_RUN
     assert cell(table, studio, Method="Error-entropy correlation (freq)", source="here") == "0.25"
-    assert cell(table, sunny, Method="Error-entropy correlation (freq)", source="here") == tables.MISSING
+    assert cell(table, sunny, Method="Error-entropy correlation (freq)", source="here") == MISSING
     assert cell(table, studio, Method="Error-entropy correlation (mitsuba)", source="paper") == "0.21"
 
 
@@ -124,7 +130,7 @@ def test_environment_kinds_place_the_paper_columns():
     assert cell(table, "lab [paper: Overcast]", Method="Ours (freq)", source="paper") == "0.06 (0.02, 0.07, 0.09)"
     # an environment of unknown kind gets no paper value
     table = parameter_table(df, PAPER, {})
-    assert cell(table, "lab", Method="Ours (freq)", source="paper") == tables.MISSING
+    assert cell(table, "lab", Method="Ours (freq)", source="paper") == MISSING
 
 
 def test_relighting_table_means_paper_rows_and_extra_methods():
@@ -135,30 +141,30 @@ def test_relighting_table_means_paper_rows_and_extra_methods():
     assert cell(table, "PSNR-H", method="freq") == "21.00"
     assert cell(table, "PSNR-H (paper)", method="freq") == "26.68"
     assert cell(table, "SSIM", method="freq") == "0.900"
-    assert cell(table, "PSNR-L", method="freq") == tables.MISSING  # ran, but no such metric
+    assert cell(table, "PSNR-L", method="freq") == MISSING  # ran, but no such metric
     assert cell(table, "Time", method="freq") == "7 s"  # time_s when there is no time_total_s
-    assert cell(table, "PSNR-H", Method="Mitsuba") == tables.NOT_RUN
-    assert cell(table, "PSNR-H", Method="NVDiffRec") == tables.NOT_RUN
+    assert cell(table, "PSNR-H", Method="Mitsuba") == NOT_RUN
+    assert cell(table, "PSNR-H", Method="NVDiffRec") == NOT_RUN
     assert cell(table, "PSNR-H (paper)", Method="NVDiffRec") == "24.32"
     assert cell(table, "PSNR-H", method="rh2001") == "18.00"  # not a paper row: appended
-    assert cell(table, "PSNR-H (paper)", method="rh2001") == tables.MISSING
+    assert cell(table, "PSNR-H (paper)", method="rh2001") == MISSING
 
 
 def test_ablation_and_finetune_tables():
     df = full_run()
-    ablation = tables.ablation_table(df, PAPER)
+    ablation = ablation_table(df, PAPER)
     assert list(ablation.method) == ["rh2001", "freq_nomask", "freq_noshadow", "freq"]
     assert cell(ablation, "MSE", method="freq_nomask") == "0.090"
     assert cell(ablation, "Shadowing", method="freq_nomask") == "yes"
     assert cell(ablation, "Masking", method="freq_nomask") == "no"
     assert cell(ablation, "MSE (paper)", method="freq_nomask") == "0.14"
     assert cell(ablation, "MSE (paper)", method="freq_noshadow") == "0.13"
-    finetune = tables.finetune_table(df, PAPER)
+    finetune = finetune_table(df, PAPER)
     assert cell(finetune, "PSNR-H", method="freq+mitsuba") == "26.50"
     assert cell(finetune, "PSNR-H (paper)", method="freq+mitsuba") == "27.04"
     assert cell(finetune, "Total time (paper)", method="mitsuba") == "70 s"
     assert cell(finetune, "MSE", method="freq+mitsuba") == "0.050"
-    assert cell(finetune, "PSNR-H", Initialization="Constant") == tables.NOT_RUN
+    assert cell(finetune, "PSNR-H", Initialization="Constant") == NOT_RUN
 
 
 def test_every_claim_holds_on_consistent_data():
@@ -216,29 +222,29 @@ def test_claims_without_mitsuba_say_not_run_and_keep_the_others():
 def test_equal_accuracy_ratio_is_the_fewest_over_captures_and_marks_lower_bounds():
     df = full_run()
     df.loc[(df.object == "torus") & (df.metric == "speed_ratio_equal_accuracy"), "value"] = 30.0
-    assert tables.equal_accuracy_ratio(df, "freq") == (15.0, True)
+    assert equal_accuracy_ratio(df, "freq") == (15.0, True)
     table = relighting_table(df, PAPER)
     assert cell(table, "x Mitsuba, equal MSE", method="freq") == "15.0x"
     assert cell(table, "x Mitsuba", method="freq") == "20.0x"  # 100 s / 5 s at Mitsuba's fixed budget
     assert cell(table, "x Mitsuba (paper)", method="freq") == "13.3x"  # 69.96 s / 5.27 s
     # Mitsuba never reached freq's MSE on one capture: the ratio there is a lower bound
     df.loc[(df.object == "torus") & (df.metric == "mitsuba_reached"), "value"] = 0.0
-    assert tables.equal_accuracy_ratio(df, "freq") == (15.0, False)
+    assert equal_accuracy_ratio(df, "freq") == (15.0, False)
     assert cell(relighting_table(df, PAPER), "x Mitsuba, equal MSE", method="freq") == ">= 15.0x"
 
 
 def test_merge_table_sets_each_merge_beside_the_mean_of_what_it_merges():
     df = full_run({("freq_merged", "mse_average"): 0.055})
-    table = tables.merge_table(df, PAPER)
+    table = merge_table(df, PAPER)
     assert list(table.method) == ["mitsuba", "mitsuba_merged", "freq", "freq_merged"]
     assert cell(table, "MSE", method="mitsuba_merged").startswith("0.035 ")
     assert cell(table, "MSE (paper)", method="mitsuba_merged") == "0.03 (0.01, 0.02, 0.06)"
     assert cell(table, "MSE (paper)", method="mitsuba") == "0.04 (0.01, 0.03, 0.07)"
-    assert cell(table, "MSE (paper)", method="freq_merged") == tables.MISSING  # the paper merged Mitsuba's only
+    assert cell(table, "MSE (paper)", method="freq_merged") == MISSING  # the paper merged Mitsuba's only
 
 
 def test_views_sweep_is_read_back_from_its_metric_names():
-    sweep = tables.views_sweep(full_run())
+    sweep = views_sweep(full_run())
     assert len(sweep) == 6 and set(sweep.object) == {"sphere", "torus"}
     sphere = sweep[sweep.object == "sphere"]
     assert list(sphere.views) == [6, 12, 24] and list(sphere.mse_average) == [0.09, 0.07, 0.06]
@@ -248,9 +254,9 @@ def test_views_sweep_is_read_back_from_its_metric_names():
 
 def test_speed_ratio_prefers_the_reported_ratio():
     df = full_run()
-    assert tables.speed_ratio(df, "freq") == pytest.approx(20.0)  # 100 s / 5 s from the times
+    assert speed_ratio(df, "freq") == pytest.approx(20.0)  # 100 s / 5 s from the times
     reported = pd.concat([df, tidy([("sphere", "studio", "freq", "speed_ratio_vs_mitsuba", 12.0)])])
-    assert tables.speed_ratio(reported, "freq") == pytest.approx(12.0)
+    assert speed_ratio(reported, "freq") == pytest.approx(12.0)
 
 
 def test_csv_round_trip_reads_empty_relight_env_as_blank():
@@ -289,7 +295,7 @@ def td_classes(page: str) -> list[tuple[str, set[str]]]:
 
 def test_markdown_rendering():
     table = pd.DataFrame({"method": ["freq_nomask", "a|b"], "MSE": ["0.100", "not run"], "Time": ["3.1 s", "-"]})
-    md = tables.to_markdown(table, title="T", caption="C").splitlines()
+    md = to_markdown(table, title="T", caption="C").splitlines()
     assert md[0] == "### T" and md[-1] == "C"
     assert md[2] == "| method | MSE | Time |"
     assert md[3] == "|---|---:|---:|"  # numeric columns right-aligned
@@ -299,7 +305,7 @@ def test_markdown_rendering():
 def test_latex_escapes_cells_headers_and_caption_and_aligns_numbers():
     table = pd.DataFrame({"method_name": ["freq_nomask", "R&D 50%"], "MSE": ["0.100", "not run"],
                           "Time": ["3.1 s", "-"]})
-    tex = tables.to_latex(table, caption="50% of x_y & z", label="tab:t")
+    tex = to_latex(table, caption="50% of x_y & z", label="tab:t")
     lines = tex.splitlines()
     assert lines[0] == r"\begin{table}[ht]" and lines[-1] == r"\end{table}" and tex.endswith("\n")
     assert r"\begin{tabular}{lrr}" in lines  # numeric columns right-aligned
@@ -311,14 +317,14 @@ def test_latex_escapes_cells_headers_and_caption_and_aligns_numbers():
     # No unescaped special character is left in the body.
     body = "\n".join(lines[lines.index(r"\midrule"):lines.index(r"\bottomrule")])
     assert "R&D" not in body and " 50%" not in body
-    assert tables.latex_escape("a < b >= c") == r"a \textless{} b \textgreater{}= c"
-    assert r"a \textless{} b" in tables.to_latex(pd.DataFrame({"x": ["a < b"]}))
+    assert latex_escape("a < b >= c") == r"a \textless{} b \textgreater{}= c"
+    assert r"a \textless{} b" in to_latex(pd.DataFrame({"x": ["a < b"]}))
 
 
 def test_html_marks_verdict_cells_escapes_and_is_a_valid_fragment():
     verdicts = pd.DataFrame({"shadowing": ["yes", "no", "no"], "holds": ["yes", "no", "not run"],
                              "time": ["3 s", "not run", "<b>&"]})
-    fragment = tables.to_html(verdicts, title="T<1>", caption="a & b", verdicts="holds")
+    fragment = to_html(verdicts, title="T<1>", caption="a & b", verdicts="holds")
     cells = td_classes(fragment)
     assert cells[1] == ("yes", {"yes"}) and cells[4] == ("no", {"no"}) and cells[7] == ("not run", {"notrun"})
     assert cells[3] == ("no", set())  # only the verdict column is coloured
@@ -326,18 +332,18 @@ def test_html_marks_verdict_cells_escapes_and_is_a_valid_fragment():
     assert "<b>" not in fragment and "&lt;b&gt;&amp;" in fragment
     # the table in a box that scrolls sideways when it is wider than the report's frame
     assert fragment.startswith('<h2>T&lt;1&gt;</h2>\n<div class="scroll"><table') and '<p class="caption">a &amp; b</p>' in fragment
-    assert "div.scroll { overflow-x: auto;" in tables.HTML_STYLE
+    assert "div.scroll { overflow-x: auto;" in HTML_STYLE
     assert [c for tag, _, c in Cells(fragment).cells if tag == "th"] == ["shadowing", "holds", "time"]
     assert "<style" not in fragment and "<script" not in fragment  # the page's head holds the style
-    assert td_classes(tables.to_html(verdicts))[1] == ("yes", set())
+    assert td_classes(to_html(verdicts))[1] == ("yes", set())
     numbers = pd.DataFrame({"method": ["freq"], "MSE": ["0.100"]})
-    assert td_classes(tables.to_html(numbers)) == [("freq", set()), ("0.100", {"num"})]
+    assert td_classes(to_html(numbers)) == [("freq", set()), ("0.100", {"num"})]
     # Tables of one page get distinct ids, the same from run to run.
-    assert tables.to_html(verdicts) == tables.to_html(verdicts)
-    ids = [part.split('"')[1] for part in (tables.to_html(verdicts), tables.to_html(numbers))
+    assert to_html(verdicts) == to_html(verdicts)
+    ids = [part.split('"')[1] for part in (to_html(verdicts), to_html(numbers))
            for part in part.split("<table id=")[1:]]
     assert len(set(ids)) == 2
-    page = tables.html_page("P", fragment)
+    page = html_page("P", fragment)
     assert page.startswith("<!DOCTYPE html>") and page.count("<style>") == 1
     assert page.index("<style>") < page.index("<body>")
 
@@ -368,7 +374,7 @@ def write_paper(tmp_path, edit) -> Path:
 ])
 def test_the_loader_names_the_file_and_the_key_of_a_malformed_entry(tmp_path, edit, message):
     path = write_paper(tmp_path, edit)
-    with pytest.raises(tables.PaperResultsError, match=message) as error:
+    with pytest.raises(PaperResultsError, match=message) as error:
         read_paper_results(path)
     text = str(error.value)
     assert text.startswith(f"{path}: key ") and "\n" not in text
@@ -380,7 +386,7 @@ def test_the_loader_reads_the_papers_numbers():
     assert PAPER.table2["Mitsuba"].time_s == 105.19
     assert PAPER.environments["sunny"] == "Rural Road" and PAPER.correlation_with == "Mitsuba"
     assert PAPER.ablation_row(False, True).values["mse"] == 0.13
-    assert PAPER.criteria == tables.ClaimCriteria(0.03, 1.0, 3.0)
+    assert PAPER.criteria == ClaimCriteria(0.03, 1.0, 3.0)
 
 
 def test_every_paper_row_of_the_registry_is_in_the_papers_table():
@@ -415,12 +421,12 @@ def test_claims_quote_the_papers_numbers():
     assert ("MSE(freq) < MSE(freq_nomask), MSE(freq_noshadow); MSE(freq_nomask), MSE(freq_noshadow) < MSE(rh2001)"
             in criteria)
     assert criteria[7].endswith("time(freq+mitsuba) < time(mitsuba) / 3")
-    assert tables.fmt_paper(26.595, 2) == "26.60" and tables.fmt_paper(0.443, 2, sign=True) == "+0.44"
-    assert tables.fmt_paper(0.125, 2) == "0.13"  # half up, as printed numbers round
+    assert fmt_paper(26.595, 2) == "26.60" and fmt_paper(0.443, 2, sign=True) == "+0.44"
+    assert fmt_paper(0.125, 2) == "0.13"  # half up, as printed numbers round
 
 
 def test_tolerances_come_from_the_papers_results():
-    strict = dataclasses.replace(PAPER, criteria=tables.ClaimCriteria(0.01, 0.1, 10.0))
+    strict = dataclasses.replace(PAPER, criteria=ClaimCriteria(0.01, 0.1, 10.0))
     table = claims(full_run(), strict)
     result = dict(zip(table.claim, table.holds))
     assert result["Parameter accuracy comparable to Mitsuba"] == "no"  # 0.06 - 0.04 > 0.01
@@ -439,16 +445,16 @@ def test_extra_methods_follow_the_registrys_order():
 
 
 def test_summaries_cover_the_six_tables_and_the_claims():
-    keys = [s.key for s in tables.summaries(full_run(), PAPER, ENV_KINDS)]
+    keys = [s.key for s in summaries(full_run(), PAPER, ENV_KINDS)]
     assert keys == ["table1_relighting", "table2_parameters", "table3_agreement", "table4_ablation",
                     "table5_finetune", "table6_merge", "claims"]
-    assert tuple(keys) == tables.SUMMARY_KEYS  # the file stems of rule tables
+    assert tuple(keys) == SUMMARY_KEYS  # the file stems of rule tables
 
 
 def test_agreement_table_means_over_captures_beside_the_paper():
     df = full_run()
     df.loc[(df.object == "torus") & (df.metric == "entropy_agreement_pearson_angular"), "value"] = 0.83
-    table = tables.agreement_table(df, PAPER)
+    table = agreement_table(df, PAPER)
     assert list(table.Entropy) == ["Entropy Mitsuba", "Entropy angular", "Entropy power spectrum"]
     assert cell(table, "Pearson", Entropy="Entropy angular") == "0.88 \u00b1 0.05"  # 0.93 and 0.83
     assert cell(table, "Pearson", Entropy="Entropy power spectrum") == "0.86 \u00b1 0.00"
@@ -459,8 +465,8 @@ def test_agreement_table_means_over_captures_beside_the_paper():
     assert cell(table, "Pearson (paper)", Entropy="Entropy power spectrum") == "0.89 \u00b1 0.06"
     assert cell(table, "Time (paper)", Entropy="Entropy Mitsuba") == "900 s"
     # without the rule's rows: missing, and the claim is not run
-    none = tables.agreement_table(df[df.method != ""], PAPER)
-    assert set(none.Pearson) == {tables.MISSING}
+    none = agreement_table(df[df.method != ""], PAPER)
+    assert set(none.Pearson) == {MISSING}
     assert verdicts(df[df.method != ""])[
         "The power-spectrum entropy agrees with the entropy Mitsuba's renders give"] == "not run"
 
@@ -471,27 +477,27 @@ RUN = {"seed": 3, "objects": ["sphere", "torus"], "real_captures": ["orb"], "cap
 
 
 def test_run_facts_state_the_configuration_with_display_names():
-    facts = tables.run_facts(RUN)
+    facts = run_facts(RUN)
     assert facts["Objects"].startswith("sphere, torus") and facts["Real captures"] == "orb"
     assert facts["Methods"] == "Ours (freq), Ours, no shadowing (freq_noshadow)"
     assert "24 training and 2 test views" in facts["Views"] and "256 x 256 pixels at 64" in facts["Views"]
     assert "held out" in facts["Relit under"] and facts["Seed"] == "3"
     listed = dict(RUN, relight_envs=["museum"], real_captures=[])
-    assert tables.run_facts(listed)["Relit under"].startswith("museum,") and tables.run_facts(listed)["Real captures"] == "none"
+    assert run_facts(listed)["Relit under"].startswith("museum,") and run_facts(listed)["Real captures"] == "none"
 
 
 def test_headline_table_means_over_captures_in_registry_order():
-    head = tables.headline_table(full_run({("freq", "mse_average"): 0.07}))
+    head = headline_table(full_run({("freq", "mse_average"): 0.07}))
     assert list(head.method[:3]) == ["spectrum", "freq", "freq_noshadow"]  # registry order, not the rows'
     assert cell(head, "Parameter MSE", method="freq") == "0.070" and cell(head, "PSNR-H", method="mitsuba") == "26.00"
     assert cell(head, "Time", method="mitsuba") == "100 s" and cell(head, "Method", method="freq") == METHODS["freq"].label
-    assert cell(head, "PSNR-H", method="rh2001") == tables.MISSING  # not relit in this table
+    assert cell(head, "PSNR-H", method="rh2001") == MISSING  # not relit in this table
 
 
 def test_run_summary_counts_the_verdicts_and_scopes_its_style():
     df = full_run({("freq", "mse_average"): 0.5})  # worse than Mitsuba and the spectrum: two claims fail
     table = claims(df, PAPER)
-    page = tables.run_summary_html(tables.run_facts(RUN), table, tables.headline_table(df))
+    page = run_summary_html(run_facts(RUN), table, headline_table(df))
     counts = table.holds.value_counts()
     assert counts.get("no", 0) >= 2
     assert f"{len(table)} claims: {counts.get('yes', 0)} hold, {counts['no']} do not hold" in page

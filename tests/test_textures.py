@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from freqbrdf.textures import grain, svbrdf_textures
+from freqbrdf.scene.textures import grain, svbrdf_textures
 
 
 @pytest.fixture(scope="module")
@@ -63,7 +63,7 @@ def test_bad_arguments_name_the_value():
 
 
 def test_scatter_to_atlas_keeps_known_values_and_fills_from_the_nearest():
-    from freqbrdf.textures import scatter_to_atlas
+    from freqbrdf.scene.textures import scatter_to_atlas
 
     texel = np.array([0 * 8 + 1, 5 * 8 + 6, 7 * 8 + 7])  # (0,1), (5,6), (7,7)
     values = np.array([[1.0, 0.0], [2.0, 0.5], [9.0, 9.0]])

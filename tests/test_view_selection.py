@@ -1,23 +1,24 @@
-"""Tests for freqbrdf.view_selection: the expected entropy of views not yet taken."""
+"""Tests for freqbrdf.studies.view_selection: the expected entropy of views not yet taken."""
 
 import numpy as np
 import pytest
 
-from freqbrdf.sh import fibonacci_hemisphere, power_spectrum, real_sh
-from freqbrdf.shfit import fit_sh, mirror_directions
-from freqbrdf.spectrum import grid_entropy, spectrum_objective, spectrum_search
-from freqbrdf.view_selection import (
-    CandidateViews,
+from freqbrdf.sphere.sh import power_spectrum, real_sh
+from freqbrdf.sphere.sampling import fibonacci_hemisphere
+from freqbrdf.estimate.shfit import fit_sh, mirror_directions
+from freqbrdf.estimate.spectrum import grid_entropy, spectrum_objective, spectrum_search
+from freqbrdf.studies.view_selection import (
     SelectionModel,
     _degree_sums,
     _fit,
     _posterior,
     _spectra_with,
-    expected_entropy,
     farthest_views,
     greedy_selection,
     rank_views,
 )
+from freqbrdf.studies.candidates import CandidateViews
+from freqbrdf.studies.expected_entropy import expected_entropy
 from synthetic import random_unit
 
 SH = {"lmax": 4, "regulariser": "exp", "lambda": 1e-3, "penalise_dc": False}

@@ -1,12 +1,12 @@
-"""Tests for freqbrdf.views: view subsets behave like a capture with fewer views."""
+"""Tests for freqbrdf.studies.views: view subsets behave like a capture with fewer views."""
 
 import numpy as np
 import pytest
 
 from freqbrdf.artefacts import Observations
-from freqbrdf.observations import band_limited_envmap, sample_equirect
-from freqbrdf.sh import equirect_directions, fibonacci_hemisphere
-from freqbrdf.views import view_subset, view_subsets
+from freqbrdf.capture.observations import band_limited_envmap, sample_equirect
+from freqbrdf.sphere.sampling import equirect_directions, fibonacci_hemisphere
+from freqbrdf.studies.views import view_subset, view_subsets
 
 
 def test_subsets_are_seeded_sorted_and_capped():

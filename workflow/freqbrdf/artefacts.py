@@ -28,12 +28,12 @@ from typing import Any
 
 import numpy as np
 
-from .brdf import TEXTURES
-from .io import read_exr, read_json, write_exr, write_json
-from .observations import SurfaceTexels
-from .validation import check_int
-from .plots import texture_preview
-from .textures import scatter_to_atlas
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.util.io import read_exr, read_json, write_exr, write_json
+from freqbrdf.capture.observations import SurfaceTexels
+from freqbrdf.util.validation import check_int
+from freqbrdf.report.plots import texture_preview
+from freqbrdf.scene.textures import scatter_to_atlas
 
 OBSERVATIONS_FORMAT = "freqbrdf-observations/1"
 SH_FORMAT = "freqbrdf-sh/1"
@@ -101,7 +101,7 @@ def sample_texels(candidates: np.ndarray, count: int, seed: int) -> np.ndarray:
 # --------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Observations:
-    """What each texel of the atlas shows in each view (see :mod:`freqbrdf.observations`).
+    """What each texel of the atlas shows in each view (see :mod:`freqbrdf.capture.observations`).
 
     Attributes
     ----------
@@ -189,7 +189,7 @@ class ObservationsWriter:
     Parameters
     ----------
     directory : path-like
-        An existing, empty directory (e.g. from :func:`freqbrdf.io.atomic_directory`).
+        An existing, empty directory (e.g. from :func:`freqbrdf.util.io.atomic_directory`).
     texels : SurfaceTexels
         The T texels, in the order of the arrays.
     views : sequence of str
@@ -223,7 +223,7 @@ class ObservationsWriter:
         np.savez(self.directory / "texels.npz", **{f: getattr(t, f) for f in _TEXEL_FIELDS})
         write_json(self.directory / "views.json", {
             "format": OBSERVATIONS_FORMAT,
-            "layout": "see freqbrdf.observations module docstring; arrays are (texel, view[, channel])",
+            "layout": "see freqbrdf.capture.observations module docstring; arrays are (texel, view[, channel])",
             "views": self.views, "texels": len(t), **meta,
         })
 
@@ -240,7 +240,7 @@ class ShFit:
     coeffs_outgoing, coeffs_incoming : numpy.ndarray
         Shape ``(T, (lmax+1)^2, 3)``, float32: SH of B and of L about the local mirror direction.
     unit_dc : numpy.ndarray
-        Shape ``(T,)``: the DC the same fit gives a constant 1 (:func:`freqbrdf.spectrum.diffuse_albedo`).
+        Shape ``(T,)``: the DC the same fit gives a constant 1 (:func:`freqbrdf.estimate.spectrum.diffuse_albedo`).
     spectra_outgoing, spectra_incoming : numpy.ndarray
         Shape ``(T, lmax+1, 3)``: power per degree.
     meta : Mapping

@@ -72,7 +72,7 @@ def _check_env_names(config: dict[str, Any]) -> None:
         raise ConfigError(
             f"config key evaluate.relight_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
         )
-    from .methods import METHODS
+    from freqbrdf.methods import METHODS
 
     unknown = [m for m in config["methods"] if m not in METHODS]
     if unknown:
@@ -81,7 +81,7 @@ def _check_env_names(config: dict[str, Any]) -> None:
 
 def _check_colmap(colmap: dict[str, Any]) -> None:
     """``poses.colmap`` maps onto `SfmOptions` and leaves the pipeline's own keys alone."""
-    from .sfm import CONFIG_PREFIX, SfmOptions
+    from freqbrdf.capture.sfm_options import CONFIG_PREFIX, SfmOptions
 
     for key in ("seed", "num_threads"):  # set by the pipeline (config seed, rule threads)
         if key in colmap:
@@ -94,7 +94,7 @@ def _check_colmap(colmap: dict[str, Any]) -> None:
 
 def _check_extra_captures(config: dict[str, Any]) -> None:
     """Real and stress captures have names of their own and consistent settings."""
-    from .meshes import OBJECTS as CATALOGUE
+    from freqbrdf.scene.meshes import OBJECTS as CATALOGUE
 
     for name, capture in config["real_captures"].items():
         if name in CATALOGUE:

@@ -6,16 +6,18 @@ from pathlib import Path
 
 import pycolmap
 
-from freqbrdf import sfm
-from freqbrdf.cameras import cameras_from_json, cameras_to_json
-from freqbrdf.io import atomic_directory, atomic_path, read_json, write_json
-from freqbrdf.logs import run_script
+from freqbrdf.capture import sfm
+from freqbrdf.capture.sfm_alignment import aligned_cameras, check_accuracy, pose_errors, reprojection_errors, summarise
+from freqbrdf.capture.sfm_options import SfmOptions
+from freqbrdf.scene.cameras import cameras_from_json, cameras_to_json
+from freqbrdf.util.io import atomic_directory, atomic_path, read_json, write_json
+from freqbrdf.util.logs import run_script
 
 
 def main(smk, log):
     capture = Path(smk.input.capture)
     reference = cameras_from_json(read_json(capture / "cameras.json"), capture / "cameras.json")
-    options = sfm.SfmOptions.from_config({**smk.params.colmap, "seed": smk.params.seed, "num_threads": smk.threads})
+    options = SfmOptions.from_config({**smk.params.colmap, "seed": smk.params.seed, "num_threads": smk.threads})
     gates = smk.params.gates
     with atomic_directory(smk.output[0]) as tmp:
         start = time.perf_counter()
@@ -27,9 +29,9 @@ def main(smk, log):
             if (work / "colmap.log").exists():
                 shutil.copy(work / "colmap.log", Path(smk.log[0]).with_suffix(".colmap.log"))
         sfm.check_registration(reconstruction.num_reg_images(), len(reference), gates["min_registered_fraction"])
-        cameras, similarity = sfm.aligned_cameras(reconstruction, reference, seed=options.seed)
-        errors = sfm.pose_errors(cameras, reference, sfm.reprojection_errors(reconstruction))
-        summary = sfm.summarise(errors, len(reference))
+        cameras, similarity = aligned_cameras(reconstruction, reference, seed=options.seed)
+        errors = pose_errors(cameras, reference, reprojection_errors(reconstruction))
+        summary = summarise(errors, len(reference))
         log.info(
             "%d of %d views registered; median rotation error %.3f deg, median centre error %.3f%%, "
             "mean reprojection error %.3f px (%.1f s)",
@@ -41,7 +43,7 @@ def main(smk, log):
         with atomic_path(tmp / "pose_errors.tsv") as f:
             errors.to_csv(f, sep="\t", index=False, float_format="%.6g")
         write_json(tmp / "summary.json", summary)
-        sfm.check_accuracy(summary, gates["max_median_rotation_deg"], gates["max_median_centre_error"])
+        check_accuracy(summary, gates["max_median_rotation_deg"], gates["max_median_centre_error"])
 
         # The COLMAP model, moved into the reference frame, next to the cameras the observations use.
         reconstruction.transform(pycolmap.Sim3d(similarity[:3, :]))

@@ -6,17 +6,17 @@ import dataclasses
 import numpy as np
 
 from freqbrdf.artefacts import ShFit, read_observations, read_sh_fit, sample_texels
-from freqbrdf.entropy_agreement import (Pairs, angular_radiance, grid_objective, likelihood_entropy, material_grid,
+from freqbrdf.studies.entropy_agreement import (Pairs, angular_radiance, grid_objective, likelihood_entropy, material_grid,
                                         mitsuba_radiance, texel_sample, timed,
                                         uniform_material_scene)
-from freqbrdf.figures import entropy_agreement_figure
-from freqbrdf.io import atomic_path, read_exr, write_json
-from freqbrdf.logs import run_script
-from freqbrdf.metrics import pearson
-from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.lobes import lobe_table, view_table
-from freqbrdf.optimise import estimate_light
-from freqbrdf.spectrum import search_fit
+from freqbrdf.report.figures import entropy_agreement_figure
+from freqbrdf.util.io import atomic_path, read_exr, write_json
+from freqbrdf.util.logs import run_script
+from freqbrdf.report.metrics import pearson
+from freqbrdf.util.mitsuba_setup import setup_mitsuba
+from freqbrdf.sphere.lobes import lobe_table, view_table
+from freqbrdf.estimate.optimise.model import estimate_light
+from freqbrdf.estimate.spectrum import search_fit
 
 
 def main(smk, log):

@@ -4,23 +4,23 @@ import functools
 
 import numpy as np
 
-from freqbrdf.cameras import cameras_from_json
-from freqbrdf.colour import LUMINANCE
-from freqbrdf.capture_io import turn_envmap
-from freqbrdf.io import atomic_path, read_exr, read_json, read_views, write_exr, write_json
-from freqbrdf.logs import run_script
-from freqbrdf.meshes import read_ply
-from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.observations import band_limit_parameter, edge_free_distances, observe, rasterise_uv
-from freqbrdf.orientation import best_azimuth
-from freqbrdf.raycast import distance_maps, mesh_scene, occlusion_test
-from freqbrdf.sh import project_equirect
+from freqbrdf.scene.cameras import cameras_from_json
+from freqbrdf.util.colour import LUMINANCE
+from freqbrdf.capture.exchange import turn_envmap
+from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views, write_exr, write_json
+from freqbrdf.util.logs import run_script
+from freqbrdf.scene.ply import read_ply
+from freqbrdf.util.mitsuba_setup import setup_mitsuba
+from freqbrdf.capture.observations import band_limit_parameter, edge_free_distances, observe, rasterise_uv
+from freqbrdf.capture.orientation import best_azimuth
+from freqbrdf.scene.raycast import distance_maps, mesh_scene, occlusion_test
+from freqbrdf.sphere.sh import project_equirect
 
 # The check needs a few hundred texels per chart, not the full atlas, and a
 # bounded number of pairs: the SH basis is (pairs x (lmax + 1)^2) floats.
 CHECK_RESOLUTION = 64
 MAX_PAIRS = 200_000
-# Patches of PATCH x PATCH texels share one fit (freqbrdf.orientation): 64 patches at 64^2.
+# Patches of PATCH x PATCH texels share one fit (freqbrdf.capture.orientation): 64 patches at 64^2.
 PATCH = 8
 
 

@@ -2,8 +2,8 @@
 
 import pandas as pd
 
-from freqbrdf.logs import run_script
-from freqbrdf.plots import spectra_comparison_figure
+from freqbrdf.util.logs import run_script
+from freqbrdf.report.plots import spectra_comparison_figure
 
 
 def main(smk, log):

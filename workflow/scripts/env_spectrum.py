@@ -3,10 +3,10 @@
 import numpy as np
 import pandas as pd
 
-from freqbrdf.envmaps import high_frequency_fraction, sh_spectrum
-from freqbrdf.io import atomic_path, read_exr
-from freqbrdf.logs import run_script
-from freqbrdf.plots import env_spectrum_figure
+from freqbrdf.scene.envmaps import high_frequency_fraction, sh_spectrum
+from freqbrdf.util.io import atomic_path, read_exr
+from freqbrdf.util.logs import run_script
+from freqbrdf.report.plots import env_spectrum_figure
 
 
 def main(smk, log):

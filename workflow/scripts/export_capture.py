@@ -2,9 +2,9 @@
 
 from pathlib import Path
 
-from freqbrdf.capture_io import export_capture
-from freqbrdf.io import atomic_directory
-from freqbrdf.logs import run_script
+from freqbrdf.capture.exchange import export_capture
+from freqbrdf.util.io import atomic_directory
+from freqbrdf.util.logs import run_script
 
 
 def main(smk, log):

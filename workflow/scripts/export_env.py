@@ -1,8 +1,8 @@
 """Rule export_env: an environment map as Radiance .hdr, the HDR format viewers and engines read."""
 
-from freqbrdf.io import read_exr
-from freqbrdf.logs import run_script
-from freqbrdf.rgbe import write_hdr
+from freqbrdf.util.io import read_exr
+from freqbrdf.util.logs import run_script
+from freqbrdf.export.rgbe import write_hdr
 
 
 def main(smk, log):

@@ -1,10 +1,10 @@
 """Rules export_gltf and export_truth_gltf: SVBRDF textures on the object's mesh as binary glTF (.glb)."""
 
 from freqbrdf.artefacts import read_svbrdf
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.gltf import GltfMaterial, write_glb
-from freqbrdf.logs import run_script
-from freqbrdf.meshes import read_ply
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.export.gltf import GltfMaterial, write_glb
+from freqbrdf.util.logs import run_script
+from freqbrdf.scene.ply import read_ply
 
 
 def main(smk, log):

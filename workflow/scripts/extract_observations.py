@@ -13,13 +13,13 @@ import time
 from pathlib import Path
 
 from freqbrdf.artefacts import ObservationsWriter
-from freqbrdf.cameras import cameras_from_json
-from freqbrdf.io import atomic_directory, read_exr, read_json, read_views
-from freqbrdf.logs import progress, run_script
-from freqbrdf.meshes import read_ply
-from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.observation_kernels import set_threads as set_kernel_threads
-from freqbrdf.observations import (
+from freqbrdf.scene.cameras import cameras_from_json
+from freqbrdf.util.io import atomic_directory, read_exr, read_json, read_views
+from freqbrdf.util.logs import progress, run_script
+from freqbrdf.scene.ply import read_ply
+from freqbrdf.util.mitsuba_setup import setup_mitsuba
+from freqbrdf.capture.kernels import set_threads as set_kernel_threads
+from freqbrdf.capture.observations import (
     band_limit_parameter,
     band_limited_envmap,
     edge_free_distances,
@@ -27,8 +27,8 @@ from freqbrdf.observations import (
     rasterise_uv,
     unusable_views,
 )
-from freqbrdf.plots import coverage_figure
-from freqbrdf.raycast import distance_maps, mesh_scene, occlusion_test
+from freqbrdf.report.plots import coverage_figure
+from freqbrdf.scene.raycast import distance_maps, mesh_scene, occlusion_test
 
 
 def main(smk, log):

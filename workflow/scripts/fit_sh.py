@@ -3,9 +3,9 @@
 import time
 
 from freqbrdf.artefacts import read_observations, write_sh_fit
-from freqbrdf.io import atomic_directory
-from freqbrdf.logs import run_script
-from freqbrdf.shfit import fit_observations
+from freqbrdf.util.io import atomic_directory
+from freqbrdf.util.logs import run_script
+from freqbrdf.estimate.shfit import fit_observations
 
 
 def main(smk, log):

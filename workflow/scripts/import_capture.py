@@ -2,8 +2,8 @@
 
 from pathlib import Path
 
-from freqbrdf.capture_io import import_capture
-from freqbrdf.logs import run_script
+from freqbrdf.capture.exchange import import_capture
+from freqbrdf.util.logs import run_script
 
 
 def main(smk, log):

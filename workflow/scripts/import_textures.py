@@ -2,9 +2,9 @@
 
 from pathlib import Path
 
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.capture_io import import_textures
-from freqbrdf.logs import run_script
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.capture.exchange import import_textures
+from freqbrdf.util.logs import run_script
 
 
 def main(smk, log):

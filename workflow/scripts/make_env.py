@@ -2,10 +2,10 @@
 
 import functools
 
-from freqbrdf import envmaps
-from freqbrdf.io import write_exr, write_png
-from freqbrdf.colour import tonemap
-from freqbrdf.logs import run_script
+from freqbrdf.scene import envmaps
+from freqbrdf.util.io import write_exr, write_png
+from freqbrdf.util.colour import tonemap
+from freqbrdf.util.logs import run_script
 
 
 def main(smk, log):
@@ -14,8 +14,8 @@ def main(smk, log):
     width = settings.pop("blur", 0.0)
     if kind == "sunny":
         # Only the sunny sky needs Mitsuba (its sunsky model), so only it pays the JIT start-up.
-        from freqbrdf.mitsuba_setup import setup_mitsuba
-        from freqbrdf.render import sunsky
+        from freqbrdf.util.mitsuba_setup import setup_mitsuba
+        from freqbrdf.scene.render import sunsky
 
         settings["sky"] = functools.partial(sunsky, setup_mitsuba(smk.params.variant, smk.threads))
     env = envmaps.blur(getattr(envmaps, kind)(smk.params.height, **settings), width)

@@ -7,9 +7,10 @@ textures (same seed), where ``params.material`` may make roughness or metallic u
 import numpy as np
 
 from freqbrdf.artefacts import write_texture
-from freqbrdf.logs import run_script
-from freqbrdf.meshes import make_mesh, write_ply
-from freqbrdf.textures import svbrdf_textures
+from freqbrdf.util.logs import run_script
+from freqbrdf.scene.meshes import make_mesh
+from freqbrdf.scene.ply import write_ply
+from freqbrdf.scene.textures import svbrdf_textures
 
 
 def main(smk, log):

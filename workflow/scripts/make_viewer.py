@@ -5,11 +5,11 @@ from pathlib import Path
 import numpy as np
 
 from freqbrdf.artefacts import read_entropy
-from freqbrdf.cameras import cameras_from_json
-from freqbrdf.gltf import read_glb
-from freqbrdf.io import atomic_path, read_json
-from freqbrdf.logs import run_script
-from freqbrdf.viewer import Panel, same_mesh, viewer_html
+from freqbrdf.scene.cameras import cameras_from_json
+from freqbrdf.export.gltf import read_glb
+from freqbrdf.util.io import atomic_path, read_json
+from freqbrdf.util.logs import run_script
+from freqbrdf.export.viewer import Panel, same_mesh, viewer_html
 
 
 def main(smk, log):

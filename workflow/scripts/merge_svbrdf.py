@@ -4,9 +4,9 @@ capture with the lowest spectrum entropy there (paper Table 6)."""
 import numpy as np
 
 from freqbrdf.artefacts import read_entropy, read_svbrdf, write_svbrdf
-from freqbrdf.io import atomic_directory, write_json
-from freqbrdf.logs import run_script
-from freqbrdf.merge import entropy_merge
+from freqbrdf.util.io import atomic_directory, write_json
+from freqbrdf.util.logs import run_script
+from freqbrdf.estimate.merge import entropy_merge
 
 
 def main(smk, log):

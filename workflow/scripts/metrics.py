@@ -11,13 +11,14 @@ from pathlib import Path
 import pandas as pd
 
 from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.cameras import cameras_from_json
-from freqbrdf.io import atomic_path, read_exr, read_json, read_views
-from freqbrdf.logs import run_script
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.scene.cameras import cameras_from_json
+from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
+from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
-from freqbrdf.metrics import (base_color_si_scores, brdf_log_rmse, parameter_error_map, parameter_mse, pearson,
-                             relight_scores, scored_pixels, time_to_reach)
+from freqbrdf.report.metrics import (base_color_si_scores, brdf_log_rmse, parameter_error_map, parameter_mse, pearson,
+                                     time_to_reach)
+from freqbrdf.report.relight_metrics import relight_scores, scored_pixels
 
 COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
 

@@ -7,11 +7,13 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf, write_svbrdf
-from freqbrdf.io import atomic_directory, atomic_path, read_exr
-from freqbrdf.logs import run_script
+from freqbrdf.util.io import atomic_directory, atomic_path, read_exr
+from freqbrdf.util.logs import run_script
 from freqbrdf.methods import get_method
-from freqbrdf.optimise import OptimiseSettings, estimate_light, optimise
-from freqbrdf.plots import loss_figure
+from freqbrdf.estimate.optimise.model import estimate_light
+from freqbrdf.estimate.optimise.settings import OptimiseSettings
+from freqbrdf.estimate.optimise.solve import optimise
+from freqbrdf.report.plots import loss_figure
 
 
 def main(smk, log):

@@ -4,8 +4,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from freqbrdf.io import atomic_path, read_json
-from freqbrdf.logs import run_script
+from freqbrdf.util.io import atomic_path, read_json
+from freqbrdf.util.logs import run_script
 
 
 def main(smk, log):

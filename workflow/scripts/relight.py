@@ -3,13 +3,13 @@
 import time
 from pathlib import Path
 
-from freqbrdf.cameras import cameras_from_json
+from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.artefacts import read_svbrdf
-from freqbrdf.io import atomic_directory, read_exr, read_json, write_exr
-from freqbrdf.logs import progress, run_script
-from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.plots import contact_sheet
-from freqbrdf.render import relit_views
+from freqbrdf.util.io import atomic_directory, read_exr, read_json, write_exr
+from freqbrdf.util.logs import progress, run_script
+from freqbrdf.util.mitsuba_setup import setup_mitsuba
+from freqbrdf.report.plots import contact_sheet
+from freqbrdf.scene.render import relit_views
 
 
 def main(smk, log):

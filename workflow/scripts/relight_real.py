@@ -3,13 +3,13 @@
 from pathlib import Path
 
 from freqbrdf.artefacts import read_svbrdf
-from freqbrdf.cameras import Cameras, cameras_from_json
-from freqbrdf.capture_io import pinhole_fov_deg, turn_envmap
-from freqbrdf.io import atomic_directory, read_exr, read_json, write_exr
-from freqbrdf.logs import run_script
-from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.plots import contact_sheet
-from freqbrdf.render import relit_views
+from freqbrdf.scene.cameras import Cameras, cameras_from_json
+from freqbrdf.capture.exchange import pinhole_fov_deg, turn_envmap
+from freqbrdf.util.io import atomic_directory, read_exr, read_json, write_exr
+from freqbrdf.util.logs import run_script
+from freqbrdf.util.mitsuba_setup import setup_mitsuba
+from freqbrdf.report.plots import contact_sheet
+from freqbrdf.scene.render import relit_views
 
 
 def main(smk, log):

@@ -4,14 +4,14 @@ import time
 
 import numpy as np
 
-from freqbrdf.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsics, mitsuba_to_world
+from freqbrdf.scene.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsics, mitsuba_to_world
 from freqbrdf.artefacts import read_svbrdf
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.io import atomic_directory, read_exr, write_exr, write_json, write_png
-from freqbrdf.logs import progress, run_script
-from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.plots import contact_sheet
-from freqbrdf.render import capture_bsdf, capture_scene, mask_scene, occluder_disk, render_views
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.util.io import atomic_directory, read_exr, write_exr, write_json, write_png
+from freqbrdf.util.logs import progress, run_script
+from freqbrdf.util.mitsuba_setup import setup_mitsuba
+from freqbrdf.report.plots import contact_sheet
+from freqbrdf.scene.render import capture_bsdf, capture_scene, mask_scene, occluder_disk, render_views
 
 
 def main(smk, log):

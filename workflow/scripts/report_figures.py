@@ -7,14 +7,14 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.figures import atlas_masks, capture_maps_figure, convergence_figure, regulariser_figure, relight_figure
-from freqbrdf.cameras import cameras_from_json
-from freqbrdf.io import atomic_path, read_exr, read_json, read_views
-from freqbrdf.metrics import scored_pixels
-from freqbrdf.logs import run_script
-from freqbrdf.observations import band_limited_envmap, sample_equirect
-from freqbrdf.shfit import FIT_OPTIONS, fit_option, mirror_directions, spectrum_log_ratio
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.report.figures import atlas_masks, capture_maps_figure, convergence_figure, regulariser_figure, relight_figure
+from freqbrdf.scene.cameras import cameras_from_json
+from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
+from freqbrdf.report.relight_metrics import scored_pixels
+from freqbrdf.util.logs import run_script
+from freqbrdf.capture.observations import band_limited_envmap, sample_equirect
+from freqbrdf.estimate.shfit import FIT_OPTIONS, fit_option, mirror_directions, spectrum_log_ratio
 
 
 def maps(smk, log):

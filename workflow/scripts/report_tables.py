@@ -4,10 +4,13 @@ report's landing summary (what was run, the claims' verdicts, the headline numbe
 
 import pandas as pd
 
-from freqbrdf.io import atomic_path
-from freqbrdf.logs import run_script
-from freqbrdf.tables import (check_tidy, headline_table, html_page, read_paper_results, run_facts, run_summary_html,
-                             summaries, to_html, to_latex, to_markdown)
+from freqbrdf.util.io import atomic_path
+from freqbrdf.util.logs import run_script
+from freqbrdf.report.tables.paper import read_paper_results
+from freqbrdf.report.tables.render import html_page, to_html, to_latex, to_markdown
+from freqbrdf.report.tables.summary import run_facts, run_summary_html, summaries
+from freqbrdf.report.tables.tables import headline_table
+from freqbrdf.report.tables.tidy import check_tidy
 
 
 def write_text(path: str, text: str) -> None:

@@ -1,6 +1,6 @@
 """Rule score_real_relight: every method's relit test views of a real capture against its test photographs.
 
-Scored like rule metrics scores synthetic relighting (freqbrdf.metrics.relight_scores),
+Scored like rule metrics scores synthetic relighting (freqbrdf.report.relight_metrics.relight_scores),
 over the pixels the test mask covers and whose photograph is finite.
 """
 
@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from freqbrdf.cameras import cameras_from_json
-from freqbrdf.io import atomic_path, read_exr, read_json, read_views
-from freqbrdf.logs import run_script
-from freqbrdf.metrics import relight_scores
+from freqbrdf.scene.cameras import cameras_from_json
+from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
+from freqbrdf.util.logs import run_script
+from freqbrdf.report.relight_metrics import relight_scores
 
 COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
 

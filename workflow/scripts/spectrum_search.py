@@ -5,13 +5,13 @@ import time
 import numpy as np
 
 from freqbrdf.artefacts import Svbrdf, read_observations, read_sh_fit, write_entropy, write_svbrdf
-from freqbrdf.brdf import principled_from_lobes
-from freqbrdf.colour import LUMINANCE
-from freqbrdf.io import atomic_directory, read_exr
-from freqbrdf.light import irradiance
-from freqbrdf.logs import run_script
-from freqbrdf.plots import entropy_figure, texel_spectra_figure
-from freqbrdf.spectrum import diffuse_albedo, residual_width, search_fit
+from freqbrdf.sphere.brdf import principled_from_lobes
+from freqbrdf.util.colour import LUMINANCE
+from freqbrdf.util.io import atomic_directory, read_exr
+from freqbrdf.estimate.light import irradiance
+from freqbrdf.util.logs import run_script
+from freqbrdf.report.plots import entropy_figure, texel_spectra_figure
+from freqbrdf.estimate.spectrum import diffuse_albedo, residual_width, search_fit
 
 
 def main(smk, log):

@@ -7,15 +7,17 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.cameras import cameras_from_json
-from freqbrdf.figures import stress_figure
-from freqbrdf.io import atomic_path, read_exr, read_json, read_views
-from freqbrdf.logs import run_script
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.scene.cameras import cameras_from_json
+from freqbrdf.report.figures import stress_figure
+from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
+from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
-from freqbrdf.metrics import parameter_error_map
-from freqbrdf.stress import blocked_light, image_psnr, pair_table, pose_effect_table, region_table, stress_table
-from freqbrdf.tables import check_tidy, fmt, html_page, method_label, to_html, to_markdown
+from freqbrdf.report.metrics import parameter_error_map
+from freqbrdf.studies.stress import blocked_light, image_psnr, pair_table, pose_effect_table, region_table, stress_table
+from freqbrdf.report.tables.display import fmt, method_label
+from freqbrdf.report.tables.render import html_page, to_html, to_markdown
+from freqbrdf.report.tables.tidy import check_tidy
 
 
 def capture_arrays(smk, index):

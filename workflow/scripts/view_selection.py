@@ -6,19 +6,19 @@ import time
 import numpy as np
 
 from freqbrdf.artefacts import read_observations, sample_texels
-from freqbrdf.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics
-from freqbrdf.io import atomic_path, read_exr, read_json, write_json
-from freqbrdf.logs import run_script
-from freqbrdf.mitsuba_setup import setup_mitsuba
-from freqbrdf.observation_kernels import set_threads as set_kernel_threads
-from freqbrdf.observations import band_limit_parameter, band_limited_envmap
-from freqbrdf.raycast import mesh_scene, occlusion_test
-from freqbrdf.view_selection import (
+from freqbrdf.scene.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics
+from freqbrdf.util.io import atomic_path, read_exr, read_json, write_json
+from freqbrdf.util.logs import run_script
+from freqbrdf.util.mitsuba_setup import setup_mitsuba
+from freqbrdf.capture.kernels import set_threads as set_kernel_threads
+from freqbrdf.capture.observations import band_limit_parameter, band_limited_envmap
+from freqbrdf.scene.raycast import mesh_scene, occlusion_test
+from freqbrdf.studies.view_selection import (
     SelectionModel,
-    capture_and_candidates,
     greedy_selection,
     ranking_table,
 )
+from freqbrdf.studies.candidates import capture_and_candidates
 
 
 def candidate_poses(smk):

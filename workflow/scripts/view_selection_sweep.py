@@ -8,21 +8,22 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf, sample_texels
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.cameras import cameras_from_json
-from freqbrdf.io import atomic_path, read_exr, read_json
-from freqbrdf.logs import run_script
-from freqbrdf.metrics import parameter_mse
-from freqbrdf.observations import band_limit_parameter, band_limited_envmap
-from freqbrdf.optimise import OptimiseSettings, estimate_light
-from freqbrdf.view_selection import (
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.scene.cameras import cameras_from_json
+from freqbrdf.util.io import atomic_path, read_exr, read_json
+from freqbrdf.util.logs import run_script
+from freqbrdf.report.metrics import parameter_mse
+from freqbrdf.capture.observations import band_limit_parameter, band_limited_envmap
+from freqbrdf.estimate.optimise.model import estimate_light
+from freqbrdf.estimate.optimise.settings import OptimiseSettings
+from freqbrdf.studies.view_selection import (
     SelectionModel,
-    capture_views,
     farthest_views,
     greedy_selection,
     set_threads,
 )
-from freqbrdf.views import estimate_subset, view_subsets
+from freqbrdf.studies.candidates import capture_views
+from freqbrdf.studies.views import estimate_subset, view_subsets
 
 
 def subsets(smk, obs, envmap, texels, directions, k, log):

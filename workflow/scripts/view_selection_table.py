@@ -2,9 +2,9 @@
 
 import pandas as pd
 
-from freqbrdf.figures import view_selection_figure
-from freqbrdf.io import atomic_path
-from freqbrdf.logs import run_script
+from freqbrdf.report.figures import view_selection_figure
+from freqbrdf.util.io import atomic_path
+from freqbrdf.util.logs import run_script
 
 
 def main(smk, log):

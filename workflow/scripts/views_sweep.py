@@ -7,13 +7,14 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf
-from freqbrdf.brdf import TEXTURES
-from freqbrdf.figures import views_figure
-from freqbrdf.io import atomic_path, read_exr
-from freqbrdf.logs import run_script
-from freqbrdf.metrics import parameter_mse
-from freqbrdf.optimise import OptimiseSettings, estimate_light
-from freqbrdf.views import estimate_subset, view_subsets
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.report.figures import views_figure
+from freqbrdf.util.io import atomic_path, read_exr
+from freqbrdf.util.logs import run_script
+from freqbrdf.report.metrics import parameter_mse
+from freqbrdf.estimate.optimise.model import estimate_light
+from freqbrdf.estimate.optimise.settings import OptimiseSettings
+from freqbrdf.studies.views import estimate_subset, view_subsets
 
 
 def main(smk, log):

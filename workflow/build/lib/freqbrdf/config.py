@@ -1,0 +1,196 @@
+"""Configuration checks and seed derivation shared by the Snakefile and the scripts."""
+
+from __future__ import annotations
+
+import math
+import zlib
+from pathlib import Path
+from typing import Any
+
+
+class ConfigError(ValueError):
+    """A configuration value is invalid; the message names the key."""
+
+
+def _key_path(path) -> str:
+    return ".".join(str(p) for p in path) or "<top level>"
+
+
+def check_config(config: dict[str, Any], schema: str | Path) -> None:
+    """Validate ``config`` against the JSON schema, then across keys.
+
+    Uses :func:`snakemake.utils.validate` (which also fills schema defaults)
+    and turns its multi-line report into one line naming the offending key.
+
+    Parameters
+    ----------
+    config : dict
+        The merged Snakemake configuration.
+    schema : path-like
+        JSON schema (YAML) file.
+
+    Raises
+    ------
+    ConfigError
+        One line: ``config key <dotted.path>: <what is wrong>``.
+    """
+    _check_schema(config, schema)
+    _check_env_names(config)
+    _check_colmap(config["poses"]["colmap"])
+    _check_extra_captures(config)
+    _check_framing(config["render"])
+
+
+def _check_schema(config: dict[str, Any], schema: str | Path) -> None:
+    """Snakemake's schema validation (fills defaults), its report cut to the best-matching error."""
+    import jsonschema
+    import yaml
+    from snakemake.utils import validate
+
+    try:
+        validate(config, str(schema))
+    except Exception:
+        with open(schema) as f:
+            schema_dict = yaml.safe_load(f)
+        validator = jsonschema.Draft202012Validator(schema_dict)
+        error = jsonschema.exceptions.best_match(validator.iter_errors(config))
+        if error is None:  # snakemake failed for another reason; let it speak
+            raise
+        raise ConfigError(f"config key {_key_path(error.absolute_path)}: {error.message}") from None
+
+
+def _check_env_names(config: dict[str, Any]) -> None:
+    """Environments and methods named anywhere are defined (under ``envs``, in the method registry)."""
+    unknown = [e for e in config["capture_envs"] if e not in config["envs"]]
+    if unknown:
+        raise ConfigError(
+            f"config key capture_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
+        )
+    relight_envs = config["evaluate"]["relight_envs"]
+    unknown = [e for e in relight_envs if e not in config["envs"]] if isinstance(relight_envs, list) else []
+    if unknown:
+        raise ConfigError(
+            f"config key evaluate.relight_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
+        )
+    from freqbrdf.methods import METHODS
+
+    unknown = [m for m in config["methods"] if m not in METHODS]
+    if unknown:
+        raise ConfigError(f"config key methods: {unknown} are not registered methods (freqbrdf.methods: {list(METHODS)})")
+
+
+def _check_colmap(colmap: dict[str, Any]) -> None:
+    """``poses.colmap`` maps onto `SfmOptions` and leaves the pipeline's own keys alone."""
+    from freqbrdf.capture.sfm_options import CONFIG_PREFIX, SfmOptions
+
+    for key in ("seed", "num_threads"):  # set by the pipeline (config seed, rule threads)
+        if key in colmap:
+            raise ConfigError(f"config key {CONFIG_PREFIX}{key}: set by the pipeline, not in config")
+    try:
+        SfmOptions.from_config(colmap)
+    except ValueError as error:
+        raise ConfigError(f"config key {error}") from None
+
+
+def _check_extra_captures(config: dict[str, Any]) -> None:
+    """Real and stress captures have names of their own and consistent settings."""
+    from freqbrdf.scene.meshes import OBJECTS as CATALOGUE
+
+    for name, capture in config["real_captures"].items():
+        if name in CATALOGUE:
+            raise ConfigError(f"config key real_captures.{name}: the name is taken by a synthetic object")
+        if capture["env"] in config["envs"]:
+            raise ConfigError(f"config key real_captures.{name}.env: {capture['env']!r} is taken by a synthetic environment")
+    for name, capture in config["stress_captures"].items():
+        if name in CATALOGUE or name in config["real_captures"]:
+            raise ConfigError(f"config key stress_captures.{name}: the name is taken by an object or a real capture")
+        if capture["env"] not in config["envs"]:
+            raise ConfigError(f"config key stress_captures.{name}.env: {capture['env']!r} not defined under envs "
+                              f"(defined: {sorted(config['envs'])})")
+        pair = capture.get("pair")
+        if pair is not None and (pair not in config["stress_captures"] or pair == name):
+            raise ConfigError(f"config key stress_captures.{name}.pair: {pair!r} is not another stress capture")
+        if capture.get("clearcoat", 0.0) > 0.0 and capture.get("model", "principled") != "principled":
+            raise ConfigError(f"config key stress_captures.{name}.clearcoat: needs model principled, "
+                              f"not {capture['model']!r}")
+
+
+def _check_framing(render: dict[str, Any]) -> None:
+    """The camera's field of view frames the unit-radius object from its distance."""
+    half_span = math.degrees(math.asin(1.0 / render["camera_distance"]))
+    if half_span >= render["fov_deg"] / 2.0:
+        raise ConfigError(
+            f"config key render.fov_deg: {render['fov_deg']} degrees is too narrow to frame the object "
+            f"(radius 1) from camera_distance {render['camera_distance']}; it needs more than {2 * half_span:.1f}"
+        )
+
+
+def derived_seed(seed: int, *names: str) -> int:
+    """A seed for one named item (object, environment, view set), stable across runs.
+
+    Parameters
+    ----------
+    seed : int
+        The global seed from config.
+    *names : str
+        Names that identify the item, e.g. ``("object", "torus")``.
+
+    Returns
+    -------
+    int
+        A 31-bit seed; different names give unrelated seeds.
+    """
+    h = zlib.crc32(str(int(seed)).encode())
+    for name in names:
+        h = zlib.crc32(name.encode(), h)
+    return h & 0x7FFFFFFF
+
+
+# The configuration the rules' measured resources refer to (config/config.yaml as shipped):
+# `size_factor` scales them to another configuration's work.
+REFERENCE_SIZE = {("render", "resolution"): 256, ("render", "spp"): 64, ("render", "train_views"): 24,
+                  ("textures", "resolution"): 256, ("mitsuba", "spp"): 8, ("mitsuba", "epochs"): 6,
+                  ("entropy_agreement", "texels"): 256, ("entropy_agreement", "spp"): 8,
+                  ("entropy_agreement", "grid"): 8}
+SIZE_KINDS = ("fixed", "pixels", "samples", "texels", "inverse", "agreement")
+
+
+def size_factor(config: dict[str, Any], kind: str) -> float:
+    """How much more work a job of ``kind`` does under ``config`` than under the shipped default.
+
+    Parameters
+    ----------
+    config : dict
+        The merged configuration.
+    kind : {"fixed", "pixels", "samples", "texels", "inverse", "agreement"}
+        What the job's time and memory grow with: nothing; the training images'
+        pixels (resolution^2 x views); their samples (pixels x spp); texels x
+        views; the differentiable-rendering baseline's samples (pixels x
+        ``mitsuba.spp`` x ``mitsuba.epochs``); the entropy agreement's paths
+        (texels x spp x grid^3 x views).
+
+    Returns
+    -------
+    float
+        1 for the default configuration.
+    """
+    def ratio(*key: str) -> float:
+        value = config
+        for k in key:
+            value = value[k]
+        return float(value) / REFERENCE_SIZE[key]
+
+    if kind not in SIZE_KINDS:
+        raise ValueError(f"size kind must be one of {SIZE_KINDS}, got {kind!r}")
+    views = ratio("render", "train_views")
+    pixels = ratio("render", "resolution") ** 2 * views
+    factors = {
+        "fixed": 1.0,
+        "pixels": pixels,
+        "samples": pixels * ratio("render", "spp"),
+        "texels": ratio("textures", "resolution") ** 2 * views,
+        "inverse": pixels * ratio("mitsuba", "spp") * ratio("mitsuba", "epochs"),
+        "agreement": views * ratio("entropy_agreement", "texels") * ratio("entropy_agreement", "spp")
+        * ratio("entropy_agreement", "grid") ** 3,
+    }
+    return factors[kind]

@@ -1,0 +1,547 @@
+"""Compiled (numba) inner loops of the gradient-descent estimator, called through
+`freqbrdf.estimate.optimise.kernels`, which checks their arguments and documents them.
+
+Kept in one file on purpose: numba's on-disk cache (``cache=True``) is invalidated by
+the defining file's modification only, so a kernel inlining a helper from another
+file would keep running its stale compiled copy after that helper changed.
+
+Every output element is written by exactly one iteration of a parallel loop and no
+reduction crosses iterations, so results do not depend on the number of threads.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["degree_sums_kernel", "shadowing_kernel", "l1_kernel", "grid_kernel", "lm_kernel"]
+
+_INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
+_SQRT2 = np.sqrt(2.0)
+_BLOCK = 256  # pairs per parallel iteration (one SH buffer each)
+_TEXELS = 64  # texels per parallel iteration (one set of scratch arrays each)
+# Levenberg-Marquardt damping: x 1/3 after a kept step, x 4 after a rejected one, within [1e-6, 1e6]
+_LM_DOWN, _LM_UP, _LM_MIN, _LM_MAX = 1.0 / 3.0, 4.0, 1e-6, 1e6
+# fast-math without "no NaNs": the Cholesky's positive-pivot test must still see a NaN
+_FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
+
+
+@numba.njit(cache=True, inline="always")
+def _real_sh_point(x, y, z, lmax, a, b, out):  # pragma: no cover - compiled
+    """Real SH of one unit direction into ``out`` ((lmax+1)^2,), the convention of
+    `freqbrdf.sphere.sh.real_sh` (Y-up, no Condon-Shortley phase), by its recurrence."""
+    t = y
+    u = -z
+    v = x
+    out[0] = _INV_SQRT_4PI
+    if lmax >= 1:
+        out[2] = t * np.sqrt(3.0) * _INV_SQRT_4PI
+    for l in range(2, lmax + 1):
+        out[l * l + l] = a[l, 0] * (t * out[(l - 1) * (l - 1) + l - 1] - b[l, 0] * out[(l - 2) * (l - 2) + l - 2])
+    c_m = u  # Re (u + i v)^m
+    s_m = v  # Im (u + i v)^m
+    qmm = _INV_SQRT_4PI
+    for m in range(1, lmax + 1):
+        if m > 1:
+            c_new = u * c_m - v * s_m
+            s_m = s_m * u + v * c_m
+            c_m = c_new
+        qmm *= np.sqrt((2.0 * m + 1.0) / (2.0 * m))
+        q2 = _SQRT2 * qmm  # sqrt(2) q_m^m
+        out[m * m + 2 * m] = q2 * c_m
+        out[m * m] = q2 * s_m
+        if m + 1 <= lmax:
+            q1 = t * q2 * np.sqrt(2.0 * m + 3.0)
+            i = (m + 1) * (m + 1) + m + 1
+            out[i + m] = q1 * c_m
+            out[i - m] = q1 * s_m
+            for l in range(m + 2, lmax + 1):
+                q = a[l, m] * (t * q1 - b[l, m] * q2)
+                i = l * l + l
+                out[i + m] = q * c_m
+                out[i - m] = q * s_m
+                q2 = q1
+                q1 = q
+
+
+@numba.njit(parallel=True, cache=True)
+def degree_sums_kernel(lg, rows, pairs, mirror, a, b, out):  # pragma: no cover - compiled
+    lmax = out.shape[1] - 1
+    n_ch = out.shape[2]
+    n = pairs.shape[0]
+    for blk in numba.prange((n + _BLOCK - 1) // _BLOCK):
+        y = np.empty((lmax + 1) * (lmax + 1))
+        for i in range(blk * _BLOCK, min(n, (blk + 1) * _BLOCK)):
+            p = pairs[i]
+            d = mirror[p]
+            norm = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            _real_sh_point(d[0] / norm, d[1] / norm, d[2] / norm, lmax, a, b, y)
+            r = rows[i]
+            for l in range(lmax + 1):
+                for c in range(n_ch):
+                    acc = 0.0
+                    for k in range(l * l, (l + 1) * (l + 1)):
+                        acc += lg[r, k, c] * y[k]
+                    out[p, l, c] = acc
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True)
+def shadowing_kernel(normals, directions, alpha, out):  # pragma: no cover - compiled
+    one = np.float32(1.0)
+    for t in numba.prange(normals.shape[0]):
+        nx, ny, nz = normals[t, 0], normals[t, 1], normals[t, 2]
+        a2 = np.float32(alpha[t] * alpha[t])
+        for q in range(directions.shape[1]):
+            c = nx * directions[0, q] + ny * directions[1, q] + nz * directions[2, q]
+            cc = max(c, np.float32(1e-6))
+            g = np.float32(2.0) / (one + np.sqrt(one + a2 * (one / (cc * cc) - one)))
+            out[t, q] = g if c > 0 else np.float32(0.0)
+
+
+@numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
+def _hermite(alpha, alpha_min, nodes):  # pragma: no cover - compiled
+    """Cubic Hermite interpolation in ``log alpha`` over ``nodes`` even nodes of ``[log alpha_min, 0]``:
+    the node i below alpha, and the weights of (value_i, slope_i, value_i+1, slope_i+1), slopes
+    in ``d / d log alpha``, for the value (w) and for ``d / d alpha`` (d)."""
+    u0 = np.log(alpha_min)
+    du = -u0 / (nodes - 1)
+    u = (np.log(min(max(alpha, alpha_min), 1.0)) - u0) / du
+    i = min(int(u), nodes - 2)
+    t = u - i
+    t2 = t * t
+    t3 = t2 * t
+    w = (2 * t3 - 3 * t2 + 1, (t3 - 2 * t2 + t) * du, 3 * t2 - 2 * t3, (t3 - t2) * du)
+    d = ((6 * t2 - 6 * t) / (du * alpha), (3 * t2 - 4 * t + 1) / alpha, (6 * t - 6 * t2) / (du * alpha),
+         (3 * t2 - 2 * t) / alpha)
+    return i, w, d
+
+
+@numba.njit(cache=True, inline="always")
+def _lobe(alpha, alpha_min, table, f, fd):  # pragma: no cover - compiled
+    """``f[l]``, the lobe's zonal spectrum at ``alpha``, and ``fd[l] = df/dalpha``.
+
+    An empty ``table`` is the paper's ``exp(-(alpha l)^2)``, with one exp (``q^(l^2)``,
+    ``q = exp(-alpha^2)``); otherwise the cubic Hermite interpolant of `freqbrdf.sphere.lobes.lobe_table`
+    in ``log alpha`` over ``[log alpha_min, 0]``, its derivative exact for the interpolant.
+    """
+    if table.shape[0] == 0:
+        q = np.exp(-alpha * alpha)
+        step = q  # q^(2l - 1)
+        value = 1.0
+        for l in range(f.shape[0]):
+            f[l] = value
+            fd[l] = -2.0 * alpha * l * l * value
+            value *= step
+            step *= q * q
+        return
+    i, w, d = _hermite(alpha, alpha_min, table.shape[0])
+    for l in range(f.shape[0]):
+        a, ma, b, mb = table[i, 0, l], table[i, 1, l], table[i + 1, 0, l], table[i + 1, 1, l]
+        f[l] = w[0] * a + w[1] * ma + w[2] * b + w[3] * mb
+        fd[l] = d[0] * a + d[1] * ma + d[2] * b + d[3] * mb
+
+
+@numba.njit(cache=True, inline="always")
+def _masking(alpha, tan2, masking):  # pragma: no cover - compiled
+    """Smith ``G1(theta_o)`` and ``dG1/dalpha`` (1 and 0 without masking)."""
+    if not masking:
+        return 1.0, 0.0
+    root = np.sqrt(1.0 + alpha * alpha * tan2)
+    g1 = 2.0 / (1.0 + root)
+    return g1, -g1 * g1 * alpha * tan2 / (2.0 * root)
+
+
+@numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
+def _view_weights(view, i, w, d, mu, masking, alpha, tan2, c5):  # pragma: no cover - compiled
+    """``a, b`` and the diffuse factor of `freqbrdf.sphere.lobes.view_table` at the texel's alpha (Hermite
+    node ``i``, weights ``w``, ``d`` of `_hermite`) and ``mu = cos theta_o`` (linear), then their
+    derivatives in alpha; a one-component table holds the diffuse factor only, ``a`` and ``b``
+    are then the paper's ``(1 - c5) G1m`` and ``c5 G1m``."""
+    x = mu * (view.shape[3] - 1)
+    j = min(int(x), view.shape[3] - 2)
+    tj = x - j
+    k = view.shape[2] - 1  # the diffuse factor is the last component
+    dif, ddif = _table_point(view, k, i, j, tj, w), _table_point(view, k, i, j, tj, d)
+    if k == 0:
+        g1, dg1 = _masking(alpha, tan2, masking)
+        return (1.0 - c5) * g1, c5 * g1, dif, (1.0 - c5) * dg1, c5 * dg1, ddif
+    return (_table_point(view, 0, i, j, tj, w), _table_point(view, 1, i, j, tj, w), dif,
+            _table_point(view, 0, i, j, tj, d), _table_point(view, 1, i, j, tj, d), ddif)
+
+
+@numba.njit(cache=True, inline="always")
+def _table_point(view, k, i, j, tj, w):  # pragma: no cover - compiled
+    """Component k of ``view`` with Hermite weights ``w`` at alpha node i, linear between columns j, j + 1."""
+    lo = w[0] * view[i, 0, k, j] + w[1] * view[i, 1, k, j] + w[2] * view[i + 1, 0, k, j] + w[3] * view[i + 1, 1, k, j]
+    hi = (w[0] * view[i, 0, k, j + 1] + w[1] * view[i, 1, k, j + 1] + w[2] * view[i + 1, 0, k, j + 1]
+          + w[3] * view[i + 1, 1, k, j + 1])
+    return (1.0 - tj) * lo + tj * hi
+
+
+@numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
+def _view_basis(alpha, alpha_min, view):  # pragma: no cover - compiled
+    """`_hermite` at alpha on the nodes of ``view`` (unused weights for the paper's empty table)."""
+    if view.shape[0] == 0:
+        zero = (0.0, 0.0, 0.0, 0.0)
+        return 0, zero, zero
+    return _hermite(alpha, alpha_min, view.shape[0])
+
+
+@numba.njit(cache=True, inline="always")
+def _model(m, base, e_pi, r0_dielectric, work, c):  # pragma: no cover - compiled
+    """``B = (1 - m) base d E / pi + R0 work[0] + work[1]`` of channel c (``d = work[4]``, `_pair_terms`),
+    ``R0 = r0_dielectric (1 - m) + m base``."""
+    return (1.0 - m) * base * e_pi * work[4, c] + (r0_dielectric * (1.0 - m) + m * base) * work[0, c] + work[1, c]
+
+
+@numba.njit(cache=True, inline="always")
+def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src,
+                texel):  # pragma: no cover - compiled
+    """Per channel of pair n, the specular term split as ``R0 work[0] + work[1]``, in ``work[2]``,
+    ``work[3]`` their derivatives in alpha, in ``work[4]`` and ``work[5]`` the diffuse factor d and
+    its derivative.
+
+    With an empty ``view``, the paper's ``F G1m Spec``: ``work[0] = (1 - c5) G1m Spec``,
+    ``work[1] = c5 G1m Spec``, ``d = 1``; otherwise ``a Spec``, ``b Spec`` and ``d``
+    (`freqbrdf.sphere.lobes.view_table`; ``vi``, ``vw``, ``vd`` from `_hermite` at alpha), ``a`` and
+    ``b`` the paper's if the table holds ``d`` only. Then each point source of ``texel`` in ``src``
+    adds its own microfacet term (`_point_source`).
+    """
+    if view.shape[0] == 0:
+        g1, dg1 = _masking(alpha, tan2[n], masking)
+        c5 = schlick[n]
+        u, v, du, dv, dif, ddif = (1.0 - c5) * g1, c5 * g1, (1.0 - c5) * dg1, c5 * dg1, 1.0, 0.0
+    else:
+        u, v, dif, du, dv, ddif = _view_weights(view, vi, vw, vd, 1.0 / np.sqrt(1.0 + tan2[n]), masking, alpha,
+                                                tan2[n], schlick[n])
+    for c in range(3):
+        work[4, c] = dif
+        work[5, c] = ddif
+        s = 0.0
+        d = 0.0
+        for l in range(f.shape[0]):
+            s += f[l] * light[n, l, c]
+            d += fd[l] * light[n, l, c]
+        work[0, c] = u * s
+        work[1, c] = v * s
+        work[2, c] = du * s + u * d
+        work[3, c] = dv * s + v * d
+    for j in range(src.shape[1]):
+        _point_source(alpha, wo, n, tan2[n], masking, src, texel, j, work)
+
+
+@numba.njit(cache=True, inline="always")
+def _point_source(alpha, wo, n, tan2_o, masking, src, s, j, work):  # pragma: no cover - compiled
+    """Add point source j of texel s to the specular parts of pair n (`_pair_terms`): the GGX
+    microfacet BRDF times cos theta_i, ``D G1(theta_i) G1m F / (4 cos theta_o)`` with Schlick's
+    ``F = R0 (1 - c5h) + c5h`` at the half vector, times the source's power."""
+    iz = src[s, j, 2]
+    if iz <= 0.0:
+        return
+    ox, oy, oz = wo[n, 0], wo[n, 1], wo[n, 2]
+    hx, hy, hz = src[s, j, 0] + ox, src[s, j, 1] + oy, iz + oz
+    norm = np.sqrt(hx * hx + hy * hy + hz * hz)
+    if norm <= 0.0 or oz <= 0.0:
+        return
+    cos2_h = (hz / norm) ** 2
+    c5h = (1.0 - min(max((hx * ox + hy * oy + hz * oz) / norm, 0.0), 1.0)) ** 5
+    a2 = alpha * alpha
+    t = cos2_h * (a2 - 1.0) + 1.0
+    ndf = a2 / (np.pi * t * t)
+    dndf = 2.0 * alpha / (np.pi * t * t) * (1.0 - 2.0 * a2 * cos2_h / t)
+    gi, dgi = _masking(alpha, src[s, j, 3], True)  # src[s, j, 3] is 0 without shadowing: G1 = 1
+    gm, dgm = _masking(alpha, tan2_o, masking)
+    q = ndf * gi * gm / (4.0 * oz)
+    dq = (dndf * gi * gm + ndf * dgi * gm + ndf * gi * dgm) / (4.0 * oz)
+    for c in range(3):
+        power = src[s, j, 4 + c]
+        work[0, c] += power * q * (1.0 - c5h)
+        work[1, c] += power * q * c5h
+        work[2, c] += power * dq * (1.0 - c5h)
+        work[3, c] += power * dq * c5h
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True)
+def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo,
+              src, grad, loss, model):  # pragma: no cover - compiled
+    n_deg = light.shape[1]
+    n_tex = start.shape[0] - 1
+    write_model = model.shape[0] > 0
+    # blocks of texels, so that the scratch arrays are allocated once per block, not per texel
+    for blk in numba.prange((n_tex + _TEXELS - 1) // _TEXELS):
+        f = np.empty(n_deg)
+        fd = np.empty(n_deg)
+        work = np.empty((6, 3))  # per channel: the model's view-dependent factors and their derivatives (`_pair_terms`)
+        signs = np.empty((2, 3))  # per channel: sum of signs times the diffuse factor, times the specular rise
+        for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
+            r = x[s, 3]
+            m = x[s, 4]
+            alpha = max(r * r, alpha_min)
+            _lobe(alpha, alpha_min, lobe, f, fd)
+            vi, vw, vd = _view_basis(alpha, alpha_min, view)
+            signs[:] = 0.0
+            sum_d = 0.0
+            total = 0.0
+            for n in range(start[s], start[s + 1]):
+                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
+                for c in range(3):
+                    value = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c)
+                    if write_model:
+                        model[n, c] = value
+                    res = value - radiance[n, c]
+                    g = np.sign(res)
+                    total += abs(res)
+                    signs[0, c] += g * work[4, c]
+                    signs[1, c] += g * work[0, c]
+                    sum_d += g * ((r0_dielectric * (1.0 - m) + m * x[s, c]) * work[2, c] + work[3, c]
+                                  + (1.0 - m) * x[s, c] * e_pi[s, c] * work[5, c])
+            grad[s, 4] = 0.0
+            for c in range(3):
+                grad[s, c] = (1.0 - m) * e_pi[s, c] * signs[0, c] + m * signs[1, c]
+                grad[s, 4] += -x[s, c] * e_pi[s, c] * signs[0, c] + (x[s, c] - r0_dielectric) * signs[1, c]
+            grad[s, 3] = sum_d * 2.0 * max(r, np.sqrt(alpha_min))
+            loss[s] = total
+
+
+@numba.njit(parallel=True, cache=True)
+def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src,
+                r_grid, m_grid, max_pairs, out):  # pragma: no cover - compiled
+    n_deg = light.shape[1]
+    n_tex = start.shape[0] - 1
+    for blk in numba.prange((n_tex + _TEXELS - 1) // _TEXELS):
+        f = np.empty(n_deg)
+        fd = np.empty(n_deg)
+        base = np.empty(3)
+        work = np.empty((6, 3))
+        rise = np.empty((max_pairs, 3))  # the specular term's two parts (`_pair_terms`)
+        fixed = np.empty((max_pairs, 3))
+        diffuse = np.empty((max_pairs, 3))  # d E / pi
+        slope = np.empty((max_pairs, 3))  # B = base slope + offset per pair and channel
+        offset = np.empty((max_pairs, 3))
+        for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
+            lo = start[s]
+            k = start[s + 1] - lo
+            best = np.inf
+            for r in r_grid:
+                alpha = max(r * r, alpha_min)
+                _lobe(alpha, alpha_min, lobe, f, fd)
+                vi, vw, vd = _view_basis(alpha, alpha_min, view)
+                for i in range(k):
+                    _pair_terms(alpha, f, fd, light, lo + i, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
+                    for c in range(3):
+                        rise[i, c] = work[0, c]
+                        fixed[i, c] = work[1, c]
+                        diffuse[i, c] = e_pi[s, c] * work[4, c]
+                for m in m_grid:
+                    # B = base a + b per channel: linear in the base colour once (r, m) are fixed
+                    for c in range(3):
+                        num = 0.0
+                        den = 0.0
+                        for i in range(k):
+                            slope[i, c] = (1.0 - m) * diffuse[i, c] + m * rise[i, c]
+                            offset[i, c] = r0_dielectric * (1.0 - m) * rise[i, c] + fixed[i, c]
+                            num += slope[i, c] * (radiance[lo + i, c] - offset[i, c])
+                            den += slope[i, c] * slope[i, c]
+                        base[c] = min(1.0, max(0.0, num / max(den, 1e-12)))
+                    cost = 0.0
+                    for i in range(k):
+                        for c in range(3):
+                            cost += abs(slope[i, c] * base[c] + offset[i, c] - radiance[lo + i, c])
+                    if cost < best:
+                        best = cost
+                        out[s, 0] = base[0]
+                        out[s, 1] = base[1]
+                        out[s, 2] = base[2]
+                        out[s, 3] = r
+                        out[s, 4] = m
+
+
+@numba.njit(cache=True, inline="always")
+def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+                wo, src, nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
+    """Objective of texel s at parameters ``xs`` (5,): its L1 data term times ``data_scale`` plus
+    ``tv_scale`` times the TV of its edges, the neighbours held at ``x`` (S, 5); ``f``, ``fd``
+    (L,) and ``work`` (6, 3) are scratch."""
+    cost = 0.0
+    if s < start.shape[0] - 1:
+        alpha = max(xs[3] * xs[3], alpha_min)
+        _lobe(alpha, alpha_min, lobe, f, fd)
+        vi, vw, vd = _view_basis(alpha, alpha_min, view)
+        m = xs[4]
+        for n in range(start[s], start[s + 1]):
+            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
+            for c in range(3):
+                cost += abs(_model(m, xs[c], e_pi[s, c], r0_dielectric, work, c) - radiance[n, c])
+        cost *= data_scale
+    for k in range(nb_start[s], nb_start[s + 1]):
+        j = nb[k]
+        for q in range(5):
+            cost += tv_scale * abs(xs[q] - x[j, q])
+    return cost
+
+
+@numba.njit(cache=True, inline="always")
+def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
+    """Solve ``a out = rhs`` for a symmetric positive definite 5x5 ``a`` (Cholesky, in place on ``a``);
+    False if a pivot is not positive."""
+    for j in range(5):
+        d = a[j, j]
+        for k in range(j):
+            d -= a[j, k] * a[j, k]
+        if not d > 0.0:
+            return False
+        d = np.sqrt(d)
+        a[j, j] = d
+        for i in range(j + 1, 5):
+            v = a[i, j]
+            for k in range(j):
+                v -= a[i, k] * a[j, k]
+            a[i, j] = v / d
+    for i in range(5):
+        v = rhs[i]
+        for k in range(i):
+            v -= a[i, k] * out[k]
+        out[i] = v / a[i, i]
+    for i in range(4, -1, -1):
+        v = out[i]
+        for k in range(i + 1, 5):
+            v -= a[k, i] * out[k]
+        out[i] = v / a[i, i]
+    return True
+
+
+@numba.njit(cache=True, inline="always")
+def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+                 wo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h,
+                 g):  # pragma: no cover - compiled
+    """Texel s's objective at ``x[s]``, and in ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton
+    matrix and gradient of its reweighted quadratic (see `lm_sweep`); the rest is scratch."""
+    h[:] = 0.0
+    g[:] = 0.0
+    cost = 0.0
+    if s < start.shape[0] - 1:
+        lo, hi = start[s], start[s + 1]
+        # IRLS floor relative to the texel's own radiance, so that it means the same in any units
+        level = 0.0
+        for p in range(lo, hi):
+            level += abs(radiance[p, 0]) + abs(radiance[p, 1]) + abs(radiance[p, 2])
+        floor = max(irls_floor * level / (3.0 * (hi - lo)), 1e-12)
+        r = x[s, 3]
+        m = x[s, 4]
+        alpha = max(r * r, alpha_min)
+        dalpha = 2.0 * max(r, np.sqrt(alpha_min))
+        _lobe(alpha, alpha_min, lobe, f, fd)
+        vi, vw, vd = _view_basis(alpha, alpha_min, view)
+        for p in range(lo, hi):
+            _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
+            for c in range(3):
+                res = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c) - radiance[p, c]
+                cost += abs(res)
+                # Jacobian row of this residual: base_c, roughness, metallic (other bases 0)
+                j_base = (1.0 - m) * e_pi[s, c] * work[4, c] + m * work[0, c]
+                j_r = ((r0_dielectric * (1.0 - m) + m * x[s, c]) * work[2, c] + work[3, c]
+                       + (1.0 - m) * x[s, c] * e_pi[s, c] * work[5, c]) * dalpha
+                j_m = -x[s, c] * e_pi[s, c] * work[4, c] + (x[s, c] - r0_dielectric) * work[0, c]
+                # the reweighted quadratic's own gradient: sign(res) above the floor, Huber below
+                w = data_scale / max(abs(res), floor)
+                g[c] += w * res * j_base
+                g[3] += w * res * j_r
+                g[4] += w * res * j_m
+                h[c, c] += w * j_base * j_base
+                h[c, 3] += w * j_base * j_r
+                h[c, 4] += w * j_base * j_m
+                h[3, 3] += w * j_r * j_r
+                h[3, 4] += w * j_r * j_m
+                h[4, 4] += w * j_m * j_m
+        cost *= data_scale
+    for k in range(nb_start[s], nb_start[s + 1]):
+        j = nb[k]
+        for q in range(5):
+            d = x[s, q] - x[j, q]
+            cost += tv_scale * abs(d)
+            w = tv_scale / max(abs(d), tv_floor)
+            g[q] += w * d
+            h[q, q] += w
+    for q in range(5):
+        for q2 in range(q):
+            h[q, q2] = h[q2, q]
+    return cost
+
+
+@numba.njit(cache=True, inline="always")
+def _bounded_system(xs, h, g, lam_s, lower, upper, a, rhs):  # pragma: no cover - compiled
+    """Fill ``a`` and ``rhs`` with the damped system ``(h + lam_s diag(h)) step = -g`` in which a
+    parameter at a bound that the gradient pushes outwards is held there; False if none may move."""
+    moving = False
+    for q in range(5):
+        for q2 in range(5):
+            a[q, q2] = h[q, q2]
+        a[q, q] += lam_s * h[q, q] + 1e-12
+        rhs[q] = -g[q]
+    for q in range(5):
+        if (xs[q] <= lower[q] and g[q] > 0.0) or (xs[q] >= upper[q] and g[q] < 0.0):
+            for q2 in range(5):
+                a[q, q2] = 0.0
+                a[q2, q] = 0.0
+            a[q, q] = 1.0
+            rhs[q] = 0.0
+        elif g[q] != 0.0:
+            moving = True
+    return moving
+
+
+@numba.njit(cache=True, inline="always")
+def _predicted_gain(h, g, step):  # pragma: no cover - compiled
+    """Decrease of the quadratic ``g.step + step.h.step / 2`` predicts for ``step``."""
+    gain = 0.0
+    for q in range(5):
+        gain -= g[q] * step[q]
+        for q2 in range(5):
+            gain -= 0.5 * step[q] * h[q, q2] * step[q2]
+    return gain
+
+
+@numba.njit(parallel=True, cache=True, fastmath=_FAST)
+def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+              wo, src, nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
+              cost_out):  # pragma: no cover - compiled
+    n_deg = light.shape[1]
+    n = texels.shape[0]
+    for blk in numba.prange((n + _TEXELS - 1) // _TEXELS):
+        f = np.empty(n_deg)
+        fd = np.empty(n_deg)
+        work = np.empty((6, 3))
+        h = np.empty((5, 5))
+        a = np.empty((5, 5))
+        g = np.empty(5)
+        rhs = np.empty(5)
+        step = np.empty(5)
+        trial = np.empty(5)
+        for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
+            s = texels[i]
+            cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
+                                r0_dielectric, lobe, view, wo, src, nb_start, nb, data_scale, tv_scale, irls_floor,
+                                tv_floor, f, fd, work, h, g)
+            cost_out[i] = cost
+            lam_s = lam[s]
+            for _ in range(tries):
+                if not _bounded_system(x[s], h, g, lam_s, lower, upper, a, rhs):
+                    break  # converged, or held by its bounds: nothing to try, damping kept
+                if not _solve_spd5(a, rhs, step):
+                    lam_s = min(lam_s * _LM_UP, _LM_MAX)
+                    continue
+                if not _predicted_gain(h, g, step) > 1e-12 * cost:
+                    break  # none worth a try once converged
+                for q in range(5):
+                    trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
+                new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
+                                  r0_dielectric, lobe, view, wo, src, nb_start, nb, x, data_scale, tv_scale, f, fd,
+                                  work)
+                if new < cost:
+                    x[s, :] = trial
+                    lam_s = max(lam_s * _LM_DOWN, _LM_MIN)
+                    break
+                lam_s = min(lam_s * _LM_UP, _LM_MAX)
+            lam[s] = lam_s
+
+

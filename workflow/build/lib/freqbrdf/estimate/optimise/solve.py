@@ -1,0 +1,210 @@
+"""The gradient-descent estimator's solvers (paper section 4.3): Adam, as the authors' code, or
+per-texel Levenberg-Marquardt, from the given start or the grid start, with the shadowed light
+refitted as the roughness moves."""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from freqbrdf.artefacts import Observations
+from freqbrdf.estimate.light import LightQuadrature
+from freqbrdf.estimate.optimise.kernels import LmStep, lm_sweep
+from freqbrdf.estimate.optimise.model import ForwardModel
+from freqbrdf.estimate.optimise.problem import build_problem, pack_params, unpack_params
+from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings, method_terms
+from freqbrdf.util.threads import set_threads
+from freqbrdf.util.validation import check_int
+
+__all__ = ["adam_step", "optimise"]
+
+_LM_TRIES = 4  # damping increases per texel and LM sweep before its step is given up
+
+
+def adam_step(
+    x: np.ndarray,
+    grad: np.ndarray,
+    m1: np.ndarray,
+    m2: np.ndarray,
+    step: int,
+    lr: float,
+    betas: tuple[float, float] = (0.9, 0.999),
+    eps: float = 1e-8,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One Adam update (Kingma and Ba 2015) followed by clamping to [0, 1].
+
+    Parameters
+    ----------
+    x, grad, m1, m2 : numpy.ndarray
+        Same shape: parameters, gradient, first and second moment estimates.
+    step : int
+        1-based step number (bias correction).
+    lr : float
+        Learning rate.
+    betas : tuple of float
+        Moment decay rates.
+    eps : float
+        Denominator offset.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        New parameters (in [0, 1]), first and second moments.
+    """
+    step = check_int(step, "step", 1)
+    b1, b2 = betas
+    m1 = b1 * m1 + (1.0 - b1) * grad
+    m2 = b2 * m2 + (1.0 - b2) * grad * grad
+    update = lr * (m1 / (1.0 - b1**step)) / (np.sqrt(m2 / (1.0 - b2**step)) + eps)
+    return np.clip(x - update, 0.0, 1.0), m1, m2
+
+
+def optimise(
+    obs: Observations,
+    irradiance: np.ndarray,
+    light: LightQuadrature,
+    init: Mapping[str, np.ndarray] | None = None,
+    method: str = "freq",
+    settings: OptimiseSettings = OptimiseSettings(),
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Per-texel principled parameters minimising the L1 + TV objective (Adam or LM: ``settings.solver``).
+
+    Parameters
+    ----------
+    obs : Observations
+        The capture's T texels x K views (:class:`freqbrdf.artefacts.Observations`);
+        the atlas indices of its texels define the TV neighbours.
+    irradiance : numpy.ndarray
+        Shape ``(T, 3)``: E at the texel normals (:func:`freqbrdf.estimate.light.irradiance`).
+    light : LightQuadrature
+        The environment that lit the capture, at the model's degree l*
+        (:func:`freqbrdf.estimate.light.light_quadrature`).
+    init : mapping, optional
+        ``base_color`` (T, 3), ``roughness`` (T,), ``metallic`` (T,) in [0, 1],
+        e.g. the spectrum-only estimate; default 0.5 everywhere.
+    method : str
+        A method of rule ``optimise_svbrdf`` in :data:`freqbrdf.methods.METHODS`.
+    settings : OptimiseSettings
+        Solver and SH fit settings.
+
+    Returns
+    -------
+    params : dict of numpy.ndarray
+        ``base_color`` (T, 3), ``roughness`` (T,), ``metallic`` (T,), float64
+        in [0, 1]. Texels without observations move only through TV.
+    loss_curve : numpy.ndarray
+        The objective at the start of each Adam iteration or LM sweep
+        (after that iteration's refit, if any, so it may jump at refits);
+        an LM run that meets ``sweep_tolerance`` early has fewer entries
+        than ``sweeps``.
+    """
+    method_terms(method)  # a bad method is named before any work
+    if not isinstance(settings, OptimiseSettings):
+        raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
+    model = ForwardModel.of(build_problem(obs, irradiance, settings.dtype), light, method, settings)
+    perm = model.problem.perm
+    xp = _start(model, init, settings)[perm]  # internal order
+    descend = _descend_lm if settings.solver == "lm" else _descend
+    xp, curve = descend(xp, model, settings)
+    x = np.empty_like(xp)
+    x[perm] = xp
+    return unpack_params(x), curve
+
+
+def _start(model: ForwardModel, init: Mapping[str, np.ndarray] | None, settings: OptimiseSettings) -> np.ndarray:
+    """Packed start parameters (T, 5): ``init``, else the grid start or 0.5 everywhere."""
+    n_texels = model.problem.n_texels
+    if init is not None:
+        return pack_params(init, n_texels)
+    if settings.grid_start:
+        # shadowed at a middle roughness: with the unshadowed light (no horizon) 1 of the 64
+        # texels of the noise-free test in tests/test_light.py starts in another basin
+        terms = model.light_terms(np.full(n_texels, 0.5), settings.workers)
+        return model.grid_start(terms, np.linspace(0.0, 1.0, settings.grid_roughness),
+                                np.linspace(0.0, 1.0, settings.grid_metallic), settings.workers)
+    return np.full((n_texels, N_PARAMS), 0.5)
+
+
+class _RefittedTerms:
+    """The light terms of the observations, refitted for the texels whose roughness moved."""
+
+    def __init__(self, xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings):
+        self.model, self.settings = model, settings
+        problem = model.problem
+        self.roughness = np.empty(problem.n_texels)
+        self.roughness[problem.perm] = xp[:, 3]
+        self.terms = model.light_terms(self.roughness, settings.workers)
+        self.fitted = self.roughness[problem.observed]  # roughness each texel's light was fitted at
+
+    def refit(self, xp: np.ndarray) -> int:
+        """Refit the texels that moved by more than ``refit_tolerance`` since their last fit (most
+        stay near their start); returns how many. Without shadowing the fitted light does not
+        depend on alpha: the first fit is exact."""
+        if not self.model.shadowing:
+            return 0
+        problem = self.model.problem
+        self.roughness[problem.perm] = xp[:, 3]
+        now = self.roughness[problem.observed]
+        slots = np.nonzero(np.abs(now - self.fitted) > self.settings.refit_tolerance)[0]
+        if slots.size:
+            self.model.refit(self.terms, self.roughness, slots, self.settings.workers)
+            self.fitted[slots] = now[slots]
+        return int(slots.size)
+
+
+def _descend_lm(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) -> tuple[np.ndarray, np.ndarray]:
+    """Levenberg-Marquardt sweeps from ``xp`` (internal order; `freqbrdf.estimate.optimise.kernels.lm_sweep`), refitting
+    the shadowed light every ``sweep_refit_every`` sweeps; returns the parameters and the objective
+    at the start of each sweep.
+
+    Each sweep updates the texels of one checkerboard colour with the other's held fixed, then the
+    other colour: block coordinate descent, so the objective does not rise between refits. The
+    objective is the one Adam minimises (`loss_and_gradient`), L1 data term and TV alike.
+    """
+    xp = xp.copy()
+    xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
+    if not settings.sweeps:
+        return xp, np.empty(0)
+    set_threads(settings.workers)
+    problem = model.problem
+    light = _RefittedTerms(xp, model, settings)
+    step = LmStep(
+        data_scale=1.0 / (3.0 * problem.n_pairs), tv_scale=settings.tv_weight / max(problem.tv_operator.shape[0], 1),
+        lower=np.array([0.0, 0.0, 0.0, settings.min_roughness, 0.0]), upper=np.ones(N_PARAMS),
+        irls_floor=settings.irls_floor, tv_floor=settings.tv_floor, tries=_LM_TRIES,
+    )
+    lam = np.full(problem.n_texels, settings.damping)
+    curve: list[float] = []
+    last_refit = 0
+    for sweep in range(settings.sweeps):
+        if sweep and sweep % settings.sweep_refit_every == 0 and light.refit(xp):
+            last_refit = sweep
+        loss = model.objective(xp, light.terms, settings.tv_weight)[0]
+        if sweep > last_refit and curve[-1] - loss < settings.sweep_tolerance * curve[-1]:
+            break
+        curve.append(loss)
+        for texels in problem.colours:
+            lm_sweep(xp, texels, light.terms, problem.pair_data, model.kernel, (problem.nb_start, problem.nb), step, lam)
+    return xp, np.asarray(curve)
+
+
+def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) -> tuple[np.ndarray, np.ndarray]:
+    """Adam from ``xp`` (internal order), refitting the shadowed light every ``refit_every`` steps;
+    returns the parameters and the loss at the start of each iteration."""
+    xp = xp.copy()
+    xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
+    if not settings.iterations:
+        return xp, np.empty(0)
+    m1 = np.zeros_like(xp)
+    m2 = np.zeros_like(xp)
+    curve = np.empty(settings.iterations)
+    set_threads(settings.workers)
+    light = _RefittedTerms(xp, model, settings)
+    for it in range(settings.iterations):
+        if it and it % settings.refit_every == 0:
+            light.refit(xp)
+        curve[it], grad = model.objective(xp, light.terms, settings.tv_weight)
+        xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
+        xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
+    return xp, curve

@@ -1,0 +1,1 @@
+"""Exports: glTF materials, RGBE environments, the offline viewer."""

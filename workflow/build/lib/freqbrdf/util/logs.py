@@ -1,0 +1,74 @@
+"""Logging for the pipeline's entry scripts.
+
+Each script hands its ``main(snakemake, log)`` to :func:`run_script`, which logs
+to the rule's ``log:`` file and to stderr with timestamps, reports the total
+time and peak memory, and records a one-line error before re-raising, so a
+failure is explained both on the console and in the log.
+"""
+
+from __future__ import annotations
+
+import logging
+import resource
+import sys
+import time
+import traceback
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+
+def script_logger(name: str, log_file: str | Path | None) -> logging.Logger:
+    """A logger writing timestamped lines to ``log_file`` (if given) and stderr."""
+    logger = logging.getLogger(f"freqbrdf.{name}")
+    logger.setLevel(logging.INFO)
+    logger.handlers.clear()
+    logger.propagate = False
+    fmt = logging.Formatter("%(asctime)s %(levelname)s [%(name)s] %(message)s", "%H:%M:%S")
+    handlers: list[logging.Handler] = [logging.StreamHandler(sys.stderr)]
+    if log_file:
+        Path(log_file).parent.mkdir(parents=True, exist_ok=True)
+        handlers.append(logging.FileHandler(log_file, mode="w"))
+    for handler in handlers:
+        handler.setFormatter(fmt)
+        logger.addHandler(handler)
+    return logger
+
+
+def progress(done: int, total: int, elapsed_s: float) -> str:
+    """``"3 of 24, 2.1 s elapsed, about 14 s left"``: a long job's progress line, the time left
+    extrapolated from the mean time per item so far."""
+    left = elapsed_s / done * (total - done) if done else float("nan")
+    return f"{done} of {total}, {elapsed_s:.1f} s elapsed, about {left:.0f} s left"
+
+
+def peak_memory_mb() -> float:
+    """Peak resident memory of this process so far, in MiB (Linux ``ru_maxrss`` is KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def run_script(main: Callable[[Any, logging.Logger], None], smk: Any) -> None:
+    """Run a rule's ``main(snakemake, log)`` with logging, timing and a one-line error.
+
+    Parameters
+    ----------
+    main : callable
+        The script body.
+    smk : snakemake.script.Snakemake
+        The ``snakemake`` object Snakemake injects into ``script:`` files.
+    """
+    log_file = smk.log[0] if len(smk.log) else None
+    wildcards = ", ".join(f"{k}={v}" for k, v in smk.wildcards.items())
+    log = script_logger(smk.rule, log_file)
+    log.info("start %s%s", smk.rule, f" ({wildcards})" if wildcards else "")
+    start = time.perf_counter()
+    try:
+        main(smk, log)
+    except Exception as exc:
+        log.error("%s failed: %s", smk.rule, str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+        log.debug("".join(traceback.format_exc()))
+        if log_file:
+            with open(log_file, "a") as f:
+                f.write(traceback.format_exc())
+        raise
+    log.info("done in %.1f s, peak memory %.0f MiB", time.perf_counter() - start, peak_memory_mb())

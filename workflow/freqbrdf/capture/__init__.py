@@ -1,0 +1,1 @@
+"""Captures: their exchange layouts and meshes, camera poses by SfM, per-texel observations."""

@@ -1,0 +1,1 @@
+"""Evaluation and report: metrics, tables and claims, figures."""

@@ -1,0 +1,168 @@
+"""What rule tables writes: every table of the report with its title and caption
+(:func:`summaries`), and the report's landing summary (:func:`run_facts`, :func:`run_summary_html`)."""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import pandas as pd
+
+from freqbrdf.report.tables.claims import claims
+from freqbrdf.report.tables.display import NOT_RUN, method_label
+from freqbrdf.report.tables.paper import PaperResults
+from freqbrdf.report.tables.render import HTML_STYLE, scoped_style, to_html
+from freqbrdf.report.tables.tables import (ablation_table, agreement_table, finetune_table, merge_table,
+                                           parameter_table, relighting_table)
+
+
+def run_facts(run: Mapping[str, object]) -> dict[str, str]:
+    """What a run did, as the report's summary states it: one line per aspect.
+
+    Parameters
+    ----------
+    run : mapping
+        From the run's configuration: ``seed``, ``objects``, ``real_captures``
+        (names), ``capture_envs``, ``envs``, ``relight_envs`` (config
+        ``evaluate.relight_envs``), ``render`` (``train_views``, ``test_views``,
+        ``resolution``, ``spp``), ``poses`` (config ``poses.source``) and ``methods``.
+
+    Returns
+    -------
+    dict of str to str
+        Aspect -> text, in reading order.
+    """
+    render, relight = run["render"], run["relight_envs"]
+    if relight == "held_out":
+        relit = "every environment a capture was not taken under (held out)"
+    else:
+        relit = "every environment" if relight == "all" else ", ".join(relight)
+    return {
+        "Objects": f"{', '.join(run['objects']) or 'none'} (synthetic, seeded ground truth)",
+        "Real captures": ", ".join(run["real_captures"]) or "none",
+        "Captured under": ", ".join(run["capture_envs"]),
+        "Relit under": f"{relit}, of {', '.join(run['envs'])}",
+        "Views": (f"{render['train_views']} training and {render['test_views']} test views per capture, "
+                  f"{render['resolution']} x {render['resolution']} pixels at {render['spp']} samples per pixel"),
+        "Poses": str(run["poses"]),
+        "Methods": ", ".join(f"{method_label(m)} ({m})" for m in run["methods"]),
+        "Seed": str(run["seed"]),
+    }
+
+
+# The summary sits in the report's own page: its style is scoped to its box.
+RUN_SUMMARY_STYLE = scoped_style(HTML_STYLE, "div.freqbrdf-summary")
+
+
+def run_summary_html(facts: Mapping[str, str], claims_table: pd.DataFrame, headline: pd.DataFrame) -> str:
+    """The report's landing summary as an HTML fragment: what was run, the paper's claims
+    with their verdicts, and the headline numbers.
+
+    Parameters
+    ----------
+    facts : mapping of str to str
+        From :func:`run_facts`.
+    claims_table : DataFrame
+        From :func:`freqbrdf.report.tables.claims.claims` (its ``criterion`` column is left to the claims page).
+    headline : DataFrame
+        From :func:`freqbrdf.report.tables.tables.headline_table`.
+    """
+    counts = claims_table.holds.value_counts()
+    tally = ", ".join(f"{counts.get(v, 0)} {text}" for v, text in (("yes", "hold"), ("no", "do not hold"),
+                                                                   (NOT_RUN, "not run")))
+    lines = "".join(f"<li><b>{html.escape(k)}:</b> {html.escape(v)}</li>" for k, v in facts.items())
+    return (f'<div class="freqbrdf-summary"><style>{RUN_SUMMARY_STYLE}</style>\n'
+            f"<h2>This run</h2>\n<ul>{lines}</ul>\n"
+            + to_html(claims_table[["claim", "holds", "ours", "paper"]], "The paper's claims on this run",
+                      f"{len(claims_table)} claims: {tally}. Criteria and the paper's sources: Tables, claims.",
+                      verdicts="holds")
+            + to_html(headline, "Headline numbers",
+                      "Means over this run's captures: parameter MSE over observed texels, PSNR-H of relighting "
+                      "under held-out environments, time per capture on 2 CPU cores. Every number: "
+                      "Tables, metrics.csv.")
+            + "</div>\n")
+
+
+@dataclass(frozen=True)
+class Summary:
+    """One summary table with its file stem, title and caption."""
+
+    key: str
+    title: str
+    caption: str
+    table: pd.DataFrame
+
+
+SUMMARY_KEYS = ("table1_relighting", "table2_parameters", "table3_agreement", "table4_ablation", "table5_finetune",
+                "table6_merge", "claims")
+"""Keys of `summaries`, in its order: the stems of rule tables' output files."""
+
+
+def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str] | None = None) -> list[Summary]:
+    """Every summary table of the report, in the paper's order, then the claims.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Tidy metrics (:func:`freqbrdf.report.tables.tidy.check_tidy`), one pose source.
+    paper : PaperResults
+        The paper's numbers (:func:`freqbrdf.report.tables.paper.read_paper_results`).
+    env_kinds : mapping, optional
+        Our environment name -> kind, to place the paper's environments
+        (:func:`freqbrdf.report.tables.tables.parameter_table`).
+
+    Returns
+    -------
+    list of Summary
+        Keyed by :data:`SUMMARY_KEYS` (the output file stems).
+    """
+    n_captures = len(df[["object", "env"]].drop_duplicates())
+    n_truth = len(df[df.metric == "mse_average"][["object", "env"]].drop_duplicates())
+    scope = (f"Ours: means over this run's {n_captures} capture(s), {n_truth} with ground truth "
+             "(parameter MSE, relighting); times on 2 CPU cores. "
+             "Paper: Wiersma et al. 2024 (arXiv 2406.17774), on an RTX 4090.")
+    return [
+        Summary("table1_relighting", "Table 1: relighting under held-out environments",
+                "PSNR-H (linear HDR), PSNR-L (tone-mapped) and SSIM of renders of the recovered textures "
+                "against ground-truth renders under environments not seen in training, mean over test views. "
+                "The paper's numbers are on Stanford-ORB photographs; ours on the synthetic benchmark. "
+                "LPIPS is not computed (no network weights offline). " + scope,
+                relighting_table(df, paper)),
+        Summary("table2_parameters", "Table 2: parameter MSE per capture environment",
+                "Average (base colour, roughness, metallic) MSE against the ground-truth textures over "
+                "observed texels; 'paper' rows give the paper's value for the environment of the same kind. "
+                "BRDF log-RMSE: RMS difference of log(1 + f cos theta_i) between the estimated and true "
+                "BRDF over a fixed set of direction pairs, on the same texels; Base SI-PSNR/SSIM: the base colour "
+                "after a per-channel least-squares scale (Stanford-ORB), sRGB; both means over captures. "
+                "Error-entropy correlation: Pearson correlation between our entropy and the method's "
+                "per-texel squared error (the paper correlates with Mitsuba's). " + scope,
+                parameter_table(df, paper, env_kinds)),
+        Summary("table3_agreement", "Table 3: entropy agreement",
+                "Pearson correlation, over a seeded sample of each capture's observed texels, of each entropy "
+                "with the entropy of a grid of uniform materials (roughness x metallic x base colour) path traced "
+                "by Mitsuba at the training views; mean \u00b1 standard deviation over the captures. 'Half the "
+                "paths': against the Mitsuba grid from one of its two sample sets. Times are for the sampled "
+                "texels (ours) and for whole captures on a GPU (paper). " + scope,
+                agreement_table(df, paper)),
+        Summary("table4_ablation", "Table 4: ablation of shadowing and masking",
+                "Our model with and without the shadowing G1(theta_i) and masking G1(theta_o) terms; "
+                "rh2001 has neither (Ramamoorthi and Hanrahan 2001). The paper's relighting numbers are on "
+                "Stanford-ORB and its MSE and time on its synthetic set, both without cosine weighting of "
+                "the samples; ours use cosine weighting. " + scope,
+                ablation_table(df, paper)),
+        Summary("table5_finetune", "Table 5: fine-tuning with Mitsuba",
+                "A short Mitsuba optimisation started from our textures (freq+mitsuba) against Mitsuba's "
+                "full optimisation from a constant (mitsuba) and our textures alone (freq). Total time "
+                "includes the initialisation. Rows without a method of ours are not in this pipeline. " + scope,
+                finetune_table(df, paper)),
+        Summary("table6_merge", "Table 6: captures merged by entropy",
+                "One texture set per object from all its captures: each texel takes the parameters of the "
+                "capture whose spectrum entropy is lowest there, against the mean of the separate captures' "
+                "estimates; parameter MSE as in Table 2. The paper merged Mitsuba's results. " + scope,
+                merge_table(df, paper)),
+        Summary("claims", "Claims of the paper, checked on this run",
+                "holds: 'yes' or 'no' by the stated criterion on this run's means; 'not run' when a method "
+                "it needs is not in the configuration's methods or produced no such metric. " + scope,
+                claims(df, paper)),
+    ]

@@ -1,0 +1,125 @@
+"""Queries on the tidy metrics table, the input of every table and claim.
+
+The tidy table ``results/tables/metrics.csv`` has one row per
+number, columns ``object, env, poses, method, relight_env, metric, value``
+(``relight_env`` empty for rows that are not about relighting). Metric names:
+
+- ``mse_base_color``, ``mse_roughness``, ``mse_metallic``, ``mse_average``:
+  parameter MSE over observed texels (synthetic captures only);
+- ``brdf_log_rmse``: the BRDF-space error over the same texels
+  (:func:`freqbrdf.report.metrics.brdf_log_rmse`); ``base_color_si_psnr``,
+  ``base_color_si_ssim``: the base colour after a per-channel scale
+  (:func:`freqbrdf.report.metrics.base_color_si_scores`);
+- ``psnr_h``, ``psnr_l``, ``ssim``, ``mse`` with ``relight_env`` set: relighting
+  under a held-out environment, mean over the test views;
+- ``pearson_entropy_error``: per capture, correlation of our entropy with that
+  method's per-texel squared parameter error;
+- ``time_s``, ``max_rss_mb``, ``time_total_s``, ``speed_ratio_vs_mitsuba``;
+- ``mitsuba_time_to_match_s``, ``mitsuba_reached``, ``speed_ratio_equal_accuracy``:
+  for the methods that need the observations, Mitsuba's time to reach their MSE
+  and its ratio to their time from the capture (a lower bound when not reached).
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+TIDY_COLUMNS = ("object", "env", "poses", "method", "relight_env", "metric", "value")
+
+
+def check_tidy(df: pd.DataFrame) -> pd.DataFrame:
+    """Check the columns of a tidy metrics table and normalise ``relight_env``.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Columns ``object, env, poses, method, relight_env, metric, value``.
+
+    Returns
+    -------
+    DataFrame
+        A copy with ``method`` and ``relight_env`` as strings ('' where empty) and ``value`` as float.
+
+    Raises
+    ------
+    ValueError
+        Naming the missing columns.
+    """
+    missing = [c for c in TIDY_COLUMNS if c not in df.columns]
+    if missing:
+        raise ValueError(f"metrics table lacks columns {missing} (has {list(df.columns)})")
+    out = df.copy()
+    # read_csv turns empty cells into NaN; compare them as ''. An empty method marks a
+    # capture's own rows (the entropy agreement), an empty relight_env every row but relighting.
+    for column in ("method", "relight_env"):
+        out[column] = out[column].fillna("").astype(str)
+    out["value"] = pd.to_numeric(out["value"], errors="coerce").astype(float)
+    return out
+
+
+def mean_metric(df: pd.DataFrame, method: str, metric: str, **where: str) -> float | None:
+    """Mean of one metric of one method over all matching rows, or None if there are none.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Tidy metrics (see :func:`check_tidy`).
+    method, metric : str
+    **where : str
+        Further equality filters, e.g. ``env="studio"``.
+    """
+    rows = df[(df.method == method) & (df.metric == metric)]
+    for column, value in where.items():
+        rows = rows[rows[column] == value]
+    values = rows.value.dropna()
+    return float(values.mean()) if len(values) else None
+
+
+def method_time(df: pd.DataFrame, method: str) -> float | None:
+    """Mean time of a method per capture: ``time_total_s`` (the method and the
+    steps it needs, e.g. SH fits), else ``time_s`` (its own rule only)."""
+    total = mean_metric(df, method, "time_total_s")
+    return total if total is not None else mean_metric(df, method, "time_s")
+
+
+def speed_ratio(df: pd.DataFrame, method: str) -> float | None:
+    """How many times faster than Mitsuba a method is: the mean of
+    ``speed_ratio_vs_mitsuba`` if present, else the ratio of mean times."""
+    ratio = mean_metric(df, method, "speed_ratio_vs_mitsuba")
+    if ratio is not None:
+        return ratio
+    t_method, t_mitsuba = method_time(df, method), method_time(df, "mitsuba")
+    if t_method is None or t_mitsuba is None or t_method <= 0:
+        return None
+    return t_mitsuba / t_method
+
+
+def ran(df: pd.DataFrame, *methods: str) -> bool:
+    """Whether every one of ``methods`` has a row."""
+    return all((df.method == m).any() for m in methods)
+
+
+def equal_accuracy_ratio(df: pd.DataFrame, method: str) -> tuple[float | None, bool]:
+    """The smallest ``speed_ratio_equal_accuracy`` of a method over the captures, and whether
+    it is exact (``mitsuba`` reached the method's MSE on every capture) or only a lower bound."""
+    rows = df[(df.method == method) & (df.metric == "speed_ratio_equal_accuracy")].dropna(subset=["value"])
+    if rows.empty:
+        return None, False
+    reached = df[(df.method == method) & (df.metric == "mitsuba_reached")].value
+    return float(rows.value.min()), bool(len(reached) and (reached == 1.0).all())
+
+
+def capture_metric(df: pd.DataFrame, metric: str) -> pd.Series:
+    """Per-capture values of a metric of the captures themselves (rows with an empty method)."""
+    return df[(df.method == "") & (df.metric == metric)].value.dropna()
+
+
+def views_sweep(df: pd.DataFrame) -> pd.DataFrame:
+    """The views sweep's rows as a table: ``object, env, views, mse_average, mean_entropy``."""
+    rows = df[df.metric.str.fullmatch(r"views_\d+_(mse_average|mean_entropy)")]
+    if rows.empty:
+        return pd.DataFrame(columns=["object", "env", "views", "mse_average", "mean_entropy"])
+    parts = rows.metric.str.extract(r"views_(\d+)_(\w+)")
+    wide = rows.assign(views=parts[0].astype(int), quantity=parts[1]).pivot_table(
+        index=["object", "env", "views"], columns="quantity", values="value").reset_index()
+    return wide.sort_values(["object", "env", "views"])

@@ -1,0 +1,1 @@
+"""Synthetic scenes: procedural objects and textures, environment maps, cameras, rendering, ray casting."""

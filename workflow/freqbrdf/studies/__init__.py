@@ -1,0 +1,1 @@
+"""Studies beyond the benchmark's tables: views sweep, view selection, entropy agreement, stress captures."""
