@@ -44,7 +44,7 @@ include: "rules/poses.smk"
 include: "rules/observations.smk"
 include: "rules/frequency.smk"
 include: "rules/estimate.smk"
-include: "rules/finetune.smk"
+include: "rules/mitsuba.smk"
 include: "rules/merge.smk"
 include: "rules/views.smk"
 include: "rules/entropy_agreement.smk"
@@ -54,9 +54,10 @@ include: "rules/relight.smk"
 include: "rules/evaluate.smk"
 include: "rules/report.smk"
 include: "rules/export.smk"
+include: "rules/targets.smk"
 
 
 rule all:
     default_target: True
     input:
-        final_outputs(),
+        ALL_TARGETS,

@@ -7,14 +7,14 @@ rule render_capture:
     estimators; split `test` (a rotated rig) is held out for relighting."""
     input:
         **object_files("{object}"),
-        envmap="results/envs/{env}.exr",
+        envmap=layout.ENVMAP,
         code=library("render_capture"),
     output:
-        directory("results/captures/{object}/{env}/{split}"),
+        directory(layout.CAPTURE),
     log:
-        "results/logs/render_capture/{object}_{env}_{split}.log",
+        layout.log("render_capture", "{object}_{env}_{split}"),
     benchmark:
-        "results/benchmarks/render_capture/{object}_{env}_{split}.tsv"
+        layout.benchmark("render_capture", "{object}_{env}_{split}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2

@@ -1,12 +1,14 @@
-# Shared definitions: names from config, wildcard constraints (only here), and
-# the library modules each rule depends on.
+# Shared definitions: names from config, wildcard constraints (only here), the inputs
+# several rule files share, and the library modules each rule depends on. Every path
+# comes from freqbrdf.layout; each rule file defines its own input functions and targets.
 import math
-from pathlib import Path
 
-from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf import layout
 from freqbrdf.config import derived_seed, size_factor
 from freqbrdf.dependencies import script_modules
+from freqbrdf.layout import fill
 from freqbrdf.methods import FREQUENCY_RULES, METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
+from freqbrdf.sphere.brdf import TEXTURES
 
 SYNTHETIC_OBJECTS = list(config["objects"])
 REAL_CAPTURES = config["real_captures"]  # name -> {dir, env, up_axis, ...}: captures imported from disk
@@ -73,7 +75,7 @@ RELIGHTS = [(o, e, p, m, r) for o, e, p in SCORED for m in METHODS for r in reli
 
 def relit_dir(o, e, p, m):
     """Output of the relighting of one estimate (relight): a subdirectory per relighting environment."""
-    return f"results/relight/{o}/{e}/{p}/{m}"
+    return fill(layout.RELIT, object=o, env=e, poses=p, method=m)
 
 
 wildcard_constraints:
@@ -115,8 +117,8 @@ def library(script):
 
 def object_files(name):
     """Ground-truth files of one object, keyed like the build_object outputs."""
-    base = f"results/objects/{name}"
-    return {"mesh": f"{base}/mesh.ply"} | {texture: f"{base}/{texture}.exr" for texture in TEXTURES}
+    textures = {texture: fill(layout.OBJECT_TEXTURE, object=name, texture=texture) for texture in TEXTURES}
+    return {"mesh": fill(layout.OBJECT_MESH, object=name)} | textures
 
 
 def truth_files(wildcards):
@@ -125,29 +127,29 @@ def truth_files(wildcards):
     if wildcards.object in REAL_CAPTURES:
         if "textures" not in REAL_CAPTURES[wildcards.object]:
             return []
-        return [f"results/imports/{wildcards.object}/truth/{name}.exr" for name in TEXTURES]
+        return [fill(layout.IMPORT_TRUTH, object=wildcards.object, texture=name) for name in TEXTURES]
     return [object_files(wildcards.object)[name] for name in TEXTURES]
 
 
 def capture_dir(wildcards, split):
     """Native capture directory of a split: rendered, or imported from disk."""
     if wildcards.object in REAL_CAPTURES:
-        return f"results/imports/{wildcards.object}/{split}"
-    return f"results/captures/{wildcards.object}/{wildcards.env}/{split}"
+        return fill(layout.IMPORT_SPLIT, object=wildcards.object, split=split)
+    return fill(layout.CAPTURE, object=wildcards.object, env=wildcards.env, split=split)
 
 
 def mesh_file(wildcards):
     """The object's mesh: procedural, or imported with a real capture."""
     if wildcards.object in REAL_CAPTURES:
-        return f"results/imports/{wildcards.object}/mesh.ply"
-    return f"results/objects/{wildcards.object}/mesh.ply"
+        return fill(layout.IMPORT_MESH, object=wildcards.object)
+    return fill(layout.OBJECT_MESH, object=wildcards.object)
 
 
 def envmap_file(wildcards):
     """The environment map lighting a capture: procedural, or imported with a real capture."""
     if wildcards.object in REAL_CAPTURES:
-        return f"results/imports/{wildcards.object}/envmap.exr"
-    return f"results/envs/{wildcards.env}.exr"
+        return fill(layout.IMPORT_ENVMAP, object=wildcards.object)
+    return fill(layout.ENVMAP, env=wildcards.env)
 
 
 def pose_dir(wildcards):
@@ -155,122 +157,64 @@ def pose_dir(wildcards):
     the capture itself (gt: the renderer's cameras) or the SfM result (colmap)."""
     if wildcards.poses == "gt":
         return capture_dir(wildcards, "train")
-    return f"results/poses/{wildcards.object}/{wildcards.env}/colmap"
+    return fill(layout.COLMAP_POSES, object=wildcards.object, env=wildcards.env)
 
 
-def final_outputs():
-    """Every final output of the workflow (the targets of rule all)."""
-    outputs = []
-    for name in TRUTH_OBJECTS:
-        outputs += list(object_files(name).values())
-    outputs += expand("results/envs/{env}_spectrum.png", env=ENVS)
-    outputs.append("results/envs/spectra.png")
-    outputs += [f"results/captures/{o}/{e}/train" for o, e in SYNTHETIC_CAPTURES]
-    outputs += expand("results/captures/{object}/{env}/test", object=SYNTHETIC_OBJECTS, env=ENVS)
-    if config["poses"]["evaluate_colmap"]:
-        outputs.append("results/tables/pose_errors.tsv")
-    outputs += [f"results/observations/{o}/{e}/{POSES}" for o, e in CAPTURES]
-    outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for o, e in CAPTURES for m in METHODS]
-    outputs += [f"results/entropy/{o}/{e}/{POSES}" for o, e in CAPTURES]
-    outputs += list(dict.fromkeys(relit_dir(o, e, p, m) for o, e, p, m, _ in RELIGHTS))
-    outputs += real_capture_outputs()  # rules/exchange.smk
-    outputs.append("results/tables/metrics.csv")
-    outputs += report_outputs()  # rules/report.smk: tables, claims, per-capture figures
-    outputs += gltf_outputs()  # rules/export.smk: .glb files, .hdr environments, viewer pages
-    outputs += view_selection_outputs()  # rules/view_selection.smk
-    outputs += stress_outputs()  # rules/stress.smk
-    return outputs
-
-
-# ---- input functions and targets of rules/estimate.smk
+# ---- input functions of rules/estimate.smk
 def optimise_start(wildcards):
     """The spectrum-only estimate when the optimiser starts from it (optimise.init: spectrum)."""
     if config["optimise"]["init"] == "spectrum":
-        return {"init": f"results/estimates/{wildcards.object}/{wildcards.env}/{wildcards.poses}/spectrum"}
+        return {
+            "init": fill(
+                layout.ESTIMATE, object=wildcards.object, env=wildcards.env, poses=wildcards.poses, method="spectrum"
+            )
+        }
     return {}
 
 
-# ---- input functions and targets of rules/evaluate.smk
+# ---- input functions of rules/evaluate.smk
 def method_benchmarks(o, e, p, m):
     """Benchmark files of the jobs a method needs once the observations exist, its own rule last."""
-    bench = "results/benchmarks"
     method = METHOD_REGISTRY[m]
     estimator = method.rule
     if estimator == "spectrum_search":
-        return [f"{bench}/fit_sh/{o}_{e}_{p}.tsv", f"{bench}/spectrum_search/{o}_{e}_{p}.tsv"]
+        return [layout.benchmark("fit_sh", f"{o}_{e}_{p}"), layout.benchmark("spectrum_search", f"{o}_{e}_{p}")]
     if method.start is not None:
         before = method_benchmarks(o, e, p, method.start)
     elif estimator == "optimise_svbrdf" and config["optimise"]["init"] == "spectrum":
         before = method_benchmarks(o, e, p, "spectrum")
     else:
         before = []
-    return before + [f"{bench}/{estimator}/{o}_{e}_{p}_{m}.tsv"]
+    return before + [layout.benchmark(estimator, f"{o}_{e}_{p}_{m}")]
 
 
-# ---- input functions and targets of rules/exchange.smk
-def real_capture_outputs():
-    """Every output of the real captures alone (targets of rule real_captures)."""
-    outputs = []
-    for name, capture in REAL_CAPTURES.items():
-        o, e = name, capture["env"]
-        outputs += [f"results/imports/{o}/env_orientation.tsv", f"results/observations/{o}/{e}/{POSES}"]
-        outputs += [f"results/estimates/{o}/{e}/{POSES}/{m}" for m in METHODS]
-        outputs += [f"results/entropy/{o}/{e}/{POSES}", f"results/figures/{o}/{e}/{POSES}/maps.png"]
-        outputs.append(f"results/tables/real/{o}_{e}_{POSES}_relight.csv")
-        if "textures" in capture:
-            outputs.append(f"results/tables/real/{o}_{e}_{POSES}.csv")
-    return outputs
-
-
-# ---- input functions and targets of rules/view_selection.smk
+# ---- input functions of rules/view_selection.smk
 def candidate_poses(wildcards):
     """The cameras.json of config view_selection.candidate_poses, if one is given."""
     path = config["view_selection"]["candidate_poses"]
     return {"candidates": path} if path else {}
 
 
-def view_selection_outputs():
-    """The ranked candidates of the first synthetic capture and, with view_selection.sweep_counts,
-    the comparison of selection strategies (targets of rule all)."""
-    outputs = [f"results/view_selection/{o}/{e}/{POSES}/ranked.tsv" for o, e in VIEW_SELECTION_CAPTURES]
-    if VIEW_SELECTION_SWEEP_CAPTURES:
-        outputs += ["results/tables/view_selection.tsv", "results/figures/view_selection.png"]
-    return outputs
-
-
-# ---- input functions and targets of rules/stress.smk
-def stress_outputs():
-    """The stress page and figure when the config has stress captures or compared pose sources."""
-    if not (STRESS or POSE_COMPARE):
-        return []
-    return ["results/tables/stress.md", "results/tables/stress.html", "results/figures/stress.png"]
-
-
-# ---- input functions and targets of rules/export.smk
-def gltf_outputs():
-    """Every .glb, .hdr and viewer page the export rules write (targets of rule all)."""
-    outputs = [f"results/gltf/{o}/{TRUTH_GLTF}.glb" for o in TRUTH_OBJECTS]
-    outputs += [f"results/gltf/{o}/{e}/{POSES}/{m}.glb" for o, e in CAPTURES for m in METHODS]
-    outputs += expand("results/envs/{env}.hdr", env=ENVS)
-    outputs += [f"results/viewer/{o}/{e}/{POSES}/viewer.html" for o, e in CAPTURES]
-    return outputs
-
-
+# ---- input functions of rules/export.smk
 def viewer_panels(wildcards):
     """The viewer's panels: the ground truth (synthetic captures only), then every method."""
     panels = (
-        [] if wildcards.object in REAL_CAPTURES else [{"name": TRUTH_GLTF, "label": "Ground truth", "overlay": False}]
+        [] if wildcards.object in REAL_CAPTURES else [{"name": layout.TRUTH, "label": "Ground truth", "overlay": False}]
     )
     return panels + [{"name": m, "label": METHOD_REGISTRY[m].label, "overlay": True} for m in METHODS]
 
 
-# ---- input functions and targets of rules/finetune.smk
+# ---- input functions of rules/mitsuba.smk
 def mitsuba_start(wildcards):
     """The estimate a fine-tuning method starts from (its registry entry's start);
     the baseline starts from a constant 0.5 (no input)."""
     start = METHOD_REGISTRY[wildcards.method].start
     if start is not None:
-        return {"init": f"results/estimates/{wildcards.object}/{wildcards.env}/{wildcards.poses}/{start}"}
+        return {
+            "init": fill(
+                layout.ESTIMATE, object=wildcards.object, env=wildcards.env, poses=wildcards.poses, method=start
+            )
+        }
     return {}
 
 
@@ -282,7 +226,7 @@ def mitsuba_evaluation(wildcards):
     w = wildcards
     return {
         "truth": [object_files(w.object)[n] for n in TEXTURES],
-        "observations": f"results/observations/{w.object}/{w.env}/{w.poses}",
+        "observations": fill(layout.OBSERVATIONS, object=w.object, env=w.env, poses=w.poses),
     }
 
 
@@ -298,7 +242,7 @@ def mitsuba_settings(wildcards):
     return settings
 
 
-# ---- input functions and targets of rules/merge.smk
+# ---- input functions of rules/merge.smk
 def merge_envs(wildcards):
     """Environments of every capture of the object, the one the merge is filed under first (ties go to it)."""
     return [wildcards.env] + [e for o, e in CAPTURES if o == wildcards.object and e != wildcards.env]
@@ -310,26 +254,12 @@ def merge_inputs(wildcards):
     start = METHOD_REGISTRY[w.method].start
     envs = merge_envs(w)
     return {
-        "estimates": [f"results/estimates/{w.object}/{e}/{w.poses}/{start}" for e in envs],
-        "entropy": [f"results/entropy/{w.object}/{e}/{w.poses}" for e in envs],
+        "estimates": [fill(layout.ESTIMATE, object=w.object, env=e, poses=w.poses, method=start) for e in envs],
+        "entropy": [fill(layout.ENTROPY, object=w.object, env=e, poses=w.poses) for e in envs],
     }
 
 
-# ---- input functions and targets of rules/report.smk
-def report_outputs():
-    """Every file the report rules write (targets of rule all)."""
-    outputs = [f"results/tables/{t}.{ext}" for t in TABLES for ext in ("md", "tex")]
-    outputs += ["results/tables/tables.md", "results/tables/tables.html", "results/tables/claims.html"]
-    outputs += [f"results/figures/{o}/{e}/{POSES}/maps.png" for o, e in CAPTURES]
-    outputs += [f"results/figures/{o}/{e}/{POSES}/relight.png" for o, e in SYNTHETIC_CAPTURES]
-    outputs += [f"results/figures/{o}/{e}/{POSES}/regulariser.png" for o, e in CAPTURES]
-    outputs += [f"results/views/{o}/{e}/{POSES}/views.png" for o, e in VIEWS_CAPTURES]
-    outputs += [f"results/entropy_agreement/{o}/{e}/{POSES}/agreement.png" for o, e in AGREEMENT_CAPTURES]
-    if CONVERGENCE_CURVES:
-        outputs += [f"results/figures/{o}/{e}/{POSES}/convergence.png" for o, e in SYNTHETIC_CAPTURES]
-    return outputs
-
-
+# ---- input functions of rules/report.smk
 def capture_relights(wildcards):
     """(method, relight_env) of every relit image set of one capture, relighting environment-major."""
     pairs = [(m, r) for o, e, p, m, r in RELIGHTS if (o, e, p) == (wildcards.object, wildcards.env, wildcards.poses)]

@@ -8,24 +8,24 @@ rule entropy_agreement:
     materials path traced by Mitsuba, of the same grid through our forward model (angular),
     and of the power spectra, with their Pearson correlations and times."""
     input:
-        observations="results/observations/{object}/{env}/{poses}",
-        sh="results/sh/{object}/{env}/{poses}",
+        observations=layout.OBSERVATIONS,
+        sh=layout.SH_FIT,
         envmap=envmap_file,
         mesh=mesh_file,
         code=library("entropy_agreement"),
     output:
-        summary="results/entropy_agreement/{object}/{env}/{poses}/agreement.json",
-        arrays="results/entropy_agreement/{object}/{env}/{poses}/entropy.npz",
+        summary=fill(layout.AGREEMENT, name="agreement.json"),
+        arrays=fill(layout.AGREEMENT, name="entropy.npz"),
         figure=report(
-            "results/entropy_agreement/{object}/{env}/{poses}/agreement.png",
+            fill(layout.AGREEMENT, name="agreement.png"),
             category="Uncertainty",
             caption="../report/entropy_agreement.rst",
             labels={"capture": "{object} / {env}", "figure": "entropy agreement"},
         ),
     log:
-        "results/logs/entropy_agreement/{object}_{env}_{poses}.log",
+        layout.log("entropy_agreement", "{object}_{env}_{poses}"),
     benchmark:
-        "results/benchmarks/entropy_agreement/{object}_{env}_{poses}.tsv"
+        layout.benchmark("entropy_agreement", "{object}_{env}_{poses}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2

@@ -1,14 +1,14 @@
 rule build_env:
     """Equirectangular HDR environment map of one named environment."""
     input:
-        code=library("make_env"),
+        code=library("build_env"),
     output:
-        exr="results/envs/{env}.exr",
-        preview="results/envs/{env}.png",
+        exr=layout.ENVMAP,
+        preview=layout.ENVMAP_PREVIEW,
     log:
-        "results/logs/build_env/{env}.log",
+        layout.log("build_env", "{env}"),
     benchmark:
-        "results/benchmarks/build_env/{env}.tsv"
+        layout.benchmark("build_env", "{env}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
@@ -22,19 +22,19 @@ rule build_env:
         height=config["envmaps"]["height"],
         mean_radiance=config["envmaps"]["mean_radiance"],
     script:
-        "../workflow/scripts/make_env.py"
+        "../workflow/scripts/build_env.py"
 
 
 rule env_spectrum:
     """Spherical-harmonics power spectrum of one environment: how much high-frequency light it has."""
     input:
-        exr="results/envs/{env}.exr",
+        exr=layout.ENVMAP,
         code=library("env_spectrum"),
     output:
-        tsv="results/envs/{env}_spectrum.tsv",
-        png=report("results/envs/{env}_spectrum.png", category="Environments", caption="../report/env_spectrum.rst"),
+        tsv=fill(layout.ENV_SPECTRUM, ext="tsv"),
+        png=report(fill(layout.ENV_SPECTRUM, ext="png"), category="Environments", caption="../report/env_spectrum.rst"),
     log:
-        "results/logs/env_spectrum/{env}.log",
+        layout.log("env_spectrum", "{env}"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -49,12 +49,12 @@ rule env_spectrum:
 rule env_spectra:
     """All environments' spectra on one plot."""
     input:
-        spectra=expand("results/envs/{env}_spectrum.tsv", env=ENVS),
+        spectra=expand(fill(layout.ENV_SPECTRUM, ext="tsv"), env=ENVS),
         code=library("env_spectra"),
     output:
-        report("results/envs/spectra.png", category="Environments", caption="../report/env_spectra.rst"),
+        report(layout.ENV_SPECTRA, category="Environments", caption="../report/env_spectra.rst"),
     log:
-        "results/logs/env_spectra.log",
+        layout.log("env_spectra"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:

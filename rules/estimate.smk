@@ -6,15 +6,15 @@ rule optimise_svbrdf:
     freq_noshadow, freq_nomask, rh2001: the Table 4 ablation)."""
     input:
         unpack(optimise_start),
-        observations="results/observations/{object}/{env}/{poses}",
+        observations=layout.OBSERVATIONS,
         envmap=envmap_file,
         code=library("optimise_svbrdf"),
     output:
-        estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
+        estimate=directory(layout.ESTIMATE),
     log:
-        "results/logs/optimise_svbrdf/{object}_{env}_{poses}_{method}.log",
+        layout.log("optimise_svbrdf", "{object}_{env}_{poses}_{method}"),
     benchmark:
-        "results/benchmarks/optimise_svbrdf/{object}_{env}_{poses}_{method}.tsv"
+        layout.benchmark("optimise_svbrdf", "{object}_{env}_{poses}_{method}")
     wildcard_constraints:
         method=wildcard_pattern(methods_of("optimise_svbrdf")),
     conda:

@@ -12,28 +12,30 @@ rule metrics:
     (PSNR-H, PSNR-L, SSIM, MSE), entropy-error correlation, time and memory.
     Each input list is in the order of the params entry of the same name."""
     input:
-        estimates=[f"results/estimates/{o}/{e}/{p}/{m}" for o, e, p, m in METRIC_ESTIMATES],
+        estimates=[fill(layout.ESTIMATE, object=o, env=e, poses=p, method=m) for o, e, p, m in METRIC_ESTIMATES],
         truth=[object_files(o)[name] for o in TRUTH_OBJECTS for name in TEXTURES],
-        observations=[f"results/observations/{o}/{e}/{p}" for o, e, p in SCORED],
-        entropy=[f"results/entropy/{o}/{e}/{p}" for o, e, p in SCORED],
+        observations=[fill(layout.OBSERVATIONS, object=o, env=e, poses=p) for o, e, p in SCORED],
+        entropy=[fill(layout.ENTROPY, object=o, env=e, poses=p) for o, e, p in SCORED],
         relit=[relit_dir(o, e, p, m) for o, e, p, m, _ in RELIGHTS],  # each holds {relight_env}/
-        references=[f"results/captures/{o}/{r}/test" for o, r in METRIC_REFERENCES],
+        references=[fill(layout.CAPTURE, object=o, env=r, split="test") for o, r in METRIC_REFERENCES],
         benchmarks=[f for o, e, p, m in METRIC_TIMINGS for f in method_benchmarks(o, e, p, m)],
-        extraction=[f"results/benchmarks/extract_observations/{o}_{e}_{p}.tsv" for o, e, p in SCORED],
-        views=[f"results/views/{o}/{e}/{POSES}/views.tsv" for o, e in VIEWS_CAPTURES],
-        agreement=[f"results/entropy_agreement/{o}/{e}/{POSES}/agreement.json" for o, e in AGREEMENT_CAPTURES],
+        extraction=[layout.benchmark("extract_observations", f"{o}_{e}_{p}") for o, e, p in SCORED],
+        views=[fill(layout.VIEWS, object=o, env=e, poses=POSES, ext="tsv") for o, e in VIEWS_CAPTURES],
+        agreement=[
+            fill(layout.AGREEMENT, object=o, env=e, poses=POSES, name="agreement.json") for o, e in AGREEMENT_CAPTURES
+        ],
         code=library("metrics"),
     output:
         report(
-            "results/tables/metrics.csv",
+            layout.METRICS,
             category="Tables",
             caption="../report/metrics.rst",
             labels={"table": "metrics.csv (every number)"},
         ),
     log:
-        "results/logs/metrics.log",
+        layout.log("metrics"),
     benchmark:
-        "results/benchmarks/metrics.tsv"
+        layout.benchmark("metrics")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 1

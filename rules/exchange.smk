@@ -1,19 +1,35 @@
 from freqbrdf.capture.exchange import source_checksum
 
+# Every output of the real captures alone: the targets of rule real_captures (and of rule all).
+REAL_CAPTURE_TARGETS = [
+    path
+    for o, capture in REAL_CAPTURES.items()
+    for e in [capture["env"]]
+    for path in [
+        fill(layout.IMPORT_ORIENTATION, object=o),
+        fill(layout.OBSERVATIONS, object=o, env=e, poses=POSES),
+        *[fill(layout.ESTIMATE, object=o, env=e, poses=POSES, method=m) for m in METHODS],
+        fill(layout.ENTROPY, object=o, env=e, poses=POSES),
+        fill(layout.CAPTURE_FIGURE, object=o, env=e, poses=POSES, name="maps.png"),
+        fill(layout.REAL_RELIGHT_SCORES, object=o, env=e, poses=POSES),
+        *([fill(layout.REAL_SCORES, object=o, env=e, poses=POSES)] if "textures" in capture else []),
+    ]
+]
+
 
 rule export_capture:
     """A rendered capture (both splits, mesh, environment) in the NeRF-Blender /
     Stanford-ORB layout, for other tools, or to test the import path."""
     input:
-        train="results/captures/{object}/{env}/train",
-        test="results/captures/{object}/{env}/test",
-        mesh="results/objects/{object}/mesh.ply",
-        envmap="results/envs/{env}.exr",
+        train=fill(layout.CAPTURE, split="train"),
+        test=fill(layout.CAPTURE, split="test"),
+        mesh=layout.OBJECT_MESH,
+        envmap=layout.ENVMAP,
         code=library("export_capture"),
     output:
-        directory("results/exports/{object}/{env}"),
+        directory(layout.EXPORT),
     log:
-        "results/logs/export_capture/{object}_{env}.log",
+        layout.log("export_capture", "{object}_{env}"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -31,12 +47,12 @@ rule import_capture:
         source=lambda wildcards: REAL_CAPTURES[wildcards.object]["dir"],
         code=library("import_capture"),
     output:
-        train=directory("results/imports/{object}/train"),
-        test=directory("results/imports/{object}/test"),
-        mesh="results/imports/{object}/mesh.ply",
-        envmap="results/imports/{object}/envmap_given.exr",
+        train=directory(fill(layout.IMPORT_SPLIT, split="train")),
+        test=directory(fill(layout.IMPORT_SPLIT, split="test")),
+        mesh=layout.IMPORT_MESH,
+        envmap=layout.IMPORT_ENVMAP_GIVEN,
     log:
-        "results/logs/import_capture/{object}.log",
+        layout.log("import_capture", "{object}"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -59,16 +75,16 @@ rule env_orientation:
     the training views (freqbrdf.capture.orientation); warns, naming the best rotation, when
     the given one is clearly worse, and applies the best one with `align_env: true`."""
     input:
-        capture="results/imports/{object}/train",
-        mesh="results/imports/{object}/mesh.ply",
-        envmap="results/imports/{object}/envmap_given.exr",
+        capture=fill(layout.IMPORT_SPLIT, split="train"),
+        mesh=layout.IMPORT_MESH,
+        envmap=layout.IMPORT_ENVMAP_GIVEN,
         code=library("env_orientation"),
     output:
-        envmap="results/imports/{object}/envmap.exr",
-        scores="results/imports/{object}/env_orientation.tsv",
-        rotation="results/imports/{object}/env_rotation.json",
+        envmap=layout.IMPORT_ENVMAP,
+        scores=layout.IMPORT_ORIENTATION,
+        rotation=layout.IMPORT_ROTATION,
     log:
-        "results/logs/env_orientation/{object}.log",
+        layout.log("env_orientation", "{object}"),
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
@@ -95,9 +111,9 @@ rule import_textures:
         source=lambda wildcards: REAL_CAPTURES[wildcards.object]["textures"],
         code=library("import_textures"),
     output:
-        **{name: f"results/imports/{{object}}/truth/{name}.exr" for name in TEXTURES},
+        **{name: fill(layout.IMPORT_TRUTH, texture=name) for name in TEXTURES},
     log:
-        "results/logs/import_textures/{object}.log",
+        layout.log("import_textures", "{object}"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -114,15 +130,17 @@ rule score_real_capture:
     """Parameter MSE and entropy-error correlation of every method on a real capture
     with ground-truth textures, in the columns of results/tables/metrics.csv."""
     input:
-        estimates=lambda w: [f"results/estimates/{w.object}/{w.env}/{w.poses}/{m}" for m in METHODS],
+        estimates=lambda w: [
+            fill(layout.ESTIMATE, object=w.object, env=w.env, poses=w.poses, method=m) for m in METHODS
+        ],
         truth=truth_files,
-        observations="results/observations/{object}/{env}/{poses}",
-        entropy="results/entropy/{object}/{env}/{poses}",
+        observations=layout.OBSERVATIONS,
+        entropy=layout.ENTROPY,
         code=library("score_real_capture"),
     output:
-        "results/tables/real/{object}_{env}_{poses}.csv",
+        layout.REAL_SCORES,
     log:
-        "results/logs/score_real_capture/{object}_{env}_{poses}.log",
+        layout.log("score_real_capture", "{object}_{env}_{poses}"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -140,18 +158,18 @@ rule relight_real:
     its own environment (test_env/ of the capture, turned like envmap.exr), or
     under the capture's environment where the capture gives none."""
     input:
-        estimate="results/estimates/{object}/{env}/{poses}/{method}",
-        mesh="results/imports/{object}/mesh.ply",
-        test="results/imports/{object}/test",
-        envmap="results/imports/{object}/envmap.exr",
-        rotation="results/imports/{object}/env_rotation.json",
+        estimate=layout.ESTIMATE,
+        mesh=layout.IMPORT_MESH,
+        test=fill(layout.IMPORT_SPLIT, split="test"),
+        envmap=layout.IMPORT_ENVMAP,
+        rotation=layout.IMPORT_ROTATION,
         code=library("relight_real"),
     output:
-        directory("results/relight_real/{object}/{env}/{poses}/{method}"),
+        directory(layout.RELIT_REAL),
     log:
-        "results/logs/relight_real/{object}_{env}_{poses}_{method}.log",
+        layout.log("relight_real", "{object}_{env}_{poses}_{method}"),
     benchmark:
-        "results/benchmarks/relight_real/{object}_{env}_{poses}_{method}.tsv"
+        layout.benchmark("relight_real", "{object}_{env}_{poses}_{method}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
@@ -173,13 +191,13 @@ rule score_real_relight:
     capture against its test photographs, in the columns of metrics.csv
     (relight_env: test_views)."""
     input:
-        relit=lambda w: [f"results/relight_real/{w.object}/{w.env}/{w.poses}/{m}" for m in METHODS],
-        test="results/imports/{object}/test",
+        relit=lambda w: [fill(layout.RELIT_REAL, object=w.object, env=w.env, poses=w.poses, method=m) for m in METHODS],
+        test=fill(layout.IMPORT_SPLIT, split="test"),
         code=library("score_real_relight"),
     output:
-        "results/tables/real/{object}_{env}_{poses}_relight.csv",
+        layout.REAL_RELIGHT_SCORES,
     log:
-        "results/logs/score_real_relight/{object}_{env}_{poses}.log",
+        layout.log("score_real_relight", "{object}_{env}_{poses}"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -198,4 +216,4 @@ rule real_captures:
     test views' scores and, with ground truth, the parameter scores; nothing of
     the synthetic benchmark."""
     input:
-        real_capture_outputs(),
+        REAL_CAPTURE_TARGETS,

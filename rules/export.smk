@@ -3,22 +3,28 @@
 # capture an HTML page showing them side by side under any environment.
 from freqbrdf.export.viewer import WEB_ASSETS, WEB_DIR
 
-TRUTH_GLTF = "truth"  # node and material name of the ground truth in .glb files and the viewer
+# Every .glb, .hdr and viewer page the export rules write.
+EXPORT_TARGETS = (
+    [fill(layout.TRUTH_GLTF, object=o) for o in TRUTH_OBJECTS]
+    + [fill(layout.GLTF, object=o, env=e, poses=POSES, method=m) for o, e in CAPTURES for m in METHODS]
+    + expand(layout.ENVMAP_HDR, env=ENVS)
+    + [fill(layout.VIEWER, object=o, env=e, poses=POSES) for o, e in CAPTURES]
+)
 
 
 rule export_gltf:
     """One method's estimate on the capture's mesh as binary glTF 2.0 (metallic-roughness material,
     base colour sRGB-encoded, roughness in G and metallic in B, 8 bits)."""
     input:
-        estimate="results/estimates/{object}/{env}/{poses}/{method}",
+        estimate=layout.ESTIMATE,
         mesh=mesh_file,
         code=library("export_gltf"),
     output:
-        "results/gltf/{object}/{env}/{poses}/{method}.glb",
+        layout.GLTF,
     log:
-        "results/logs/export_gltf/{object}_{env}_{poses}_{method}.log",
+        layout.log("export_gltf", "{object}_{env}_{poses}_{method}"),
     benchmark:
-        "results/benchmarks/export_gltf/{object}_{env}_{poses}_{method}.tsv"
+        layout.benchmark("export_gltf", "{object}_{env}_{poses}_{method}")
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -34,35 +40,35 @@ rule export_truth_gltf:
     """A synthetic object's ground-truth textures on its mesh as binary glTF, as rule export_gltf."""
     input:
         **object_files("{object}"),
-        code=library("export_gltf"),
+        code=library("export_truth_gltf"),
     output:
-        f"results/gltf/{{object}}/{TRUTH_GLTF}.glb",
+        layout.TRUTH_GLTF,
     log:
-        "results/logs/export_truth_gltf/{object}.log",
+        layout.log("export_truth_gltf", "{object}"),
     benchmark:
-        "results/benchmarks/export_truth_gltf/{object}.tsv"
+        layout.benchmark("export_truth_gltf", "{object}")
     conda:
         "../envs/freqbrdf.yaml"
     resources:
         mem_mb=memory(500, "texels"),
         runtime=minutes(1, "texels"),
     params:
-        name=TRUTH_GLTF,
+        name=layout.TRUTH,
     script:
-        "../workflow/scripts/export_gltf.py"
+        "../workflow/scripts/export_truth_gltf.py"
 
 
 rule export_env:
     """An environment map as Radiance .hdr (RGBE, Mitsuba's equirectangular layout)."""
     input:
-        envmap="results/envs/{env}.exr",
+        envmap=layout.ENVMAP,
         code=library("export_env"),
     output:
-        "results/envs/{env}.hdr",
+        layout.ENVMAP_HDR,
     log:
-        "results/logs/export_env/{env}.log",
+        layout.log("export_env", "{env}"),
     benchmark:
-        "results/benchmarks/export_env/{env}.tsv"
+        layout.benchmark("export_env", "{env}")
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -76,21 +82,21 @@ rule viewer:
     """The ground truth and every method's .glb side by side in one self-contained HTML page (three.js,
     inlined): one camera for all panels, any benchmark environment, the entropy as an overlay."""
     input:
-        truth=lambda w: [] if w.object in REAL_CAPTURES else [f"results/gltf/{w.object}/{TRUTH_GLTF}.glb"],
-        estimates=lambda w: [f"results/gltf/{w.object}/{w.env}/{w.poses}/{m}.glb" for m in METHODS],
-        envs=expand("results/envs/{env}.hdr", env=ENVS),
-        entropy="results/entropy/{object}/{env}/{poses}",
+        truth=lambda w: [] if w.object in REAL_CAPTURES else [fill(layout.TRUTH_GLTF, object=w.object)],
+        estimates=lambda w: [fill(layout.GLTF, object=w.object, env=w.env, poses=w.poses, method=m) for m in METHODS],
+        envs=expand(layout.ENVMAP_HDR, env=ENVS),
+        entropy=layout.ENTROPY,
         cameras=pose_dir,  # the page opens on the capture's first view
         web=[str(WEB_DIR / asset) for asset in WEB_ASSETS],
-        code=library("make_viewer"),
+        code=library("viewer"),
     output:
         # Linked from the maps figure's caption, not embedded: a single-file report would
         # carry 7 MB per page as data: addresses, which Chromium does not show above 2 MB.
-        "results/viewer/{object}/{env}/{poses}/viewer.html",
+        layout.VIEWER,
     log:
-        "results/logs/viewer/{object}_{env}_{poses}.log",
+        layout.log("viewer", "{object}_{env}_{poses}"),
     benchmark:
-        "results/benchmarks/viewer/{object}_{env}_{poses}.tsv"
+        layout.benchmark("viewer", "{object}_{env}_{poses}")
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -101,4 +107,4 @@ rule viewer:
         envs=ENVS,
         title=lambda w: f"FreqBRDF: {w.object} / {w.env} ({w.poses} poses)",
     script:
-        "../workflow/scripts/make_viewer.py"
+        "../workflow/scripts/viewer.py"

@@ -2,14 +2,14 @@ rule fit_sh:
     """Spherical-harmonics fits of the outgoing radiance B and the incoming light L
     of every texel, and their power spectra (cached for every later stage)."""
     input:
-        observations="results/observations/{object}/{env}/{poses}",
+        observations=layout.OBSERVATIONS,
         code=library("fit_sh"),
     output:
-        directory("results/sh/{object}/{env}/{poses}"),
+        directory(layout.SH_FIT),
     log:
-        "results/logs/fit_sh/{object}_{env}_{poses}.log",
+        layout.log("fit_sh", "{object}_{env}_{poses}"),
     benchmark:
-        "results/benchmarks/fit_sh/{object}_{env}_{poses}.tsv"
+        layout.benchmark("fit_sh", "{object}_{env}_{poses}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
@@ -26,17 +26,17 @@ rule spectrum_search:
     """Spectrum-only estimate (grid search over K_s and alpha) and the per-texel
     entropy of its likelihood: the method's uncertainty map."""
     input:
-        sh="results/sh/{object}/{env}/{poses}",
-        observations="results/observations/{object}/{env}/{poses}",
+        sh=layout.SH_FIT,
+        observations=layout.OBSERVATIONS,
         envmap=envmap_file,
         code=library("spectrum_search"),
     output:
-        estimate=directory("results/estimates/{object}/{env}/{poses}/spectrum"),
-        entropy=directory("results/entropy/{object}/{env}/{poses}"),
+        estimate=directory(fill(layout.ESTIMATE, method="spectrum")),
+        entropy=directory(layout.ENTROPY),
     log:
-        "results/logs/spectrum_search/{object}_{env}_{poses}.log",
+        layout.log("spectrum_search", "{object}_{env}_{poses}"),
     benchmark:
-        "results/benchmarks/spectrum_search/{object}_{env}_{poses}.tsv"
+        layout.benchmark("spectrum_search", "{object}_{env}_{poses}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2

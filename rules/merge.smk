@@ -8,11 +8,11 @@ rule merge_svbrdf:
         unpack(merge_inputs),
         code=library("merge_svbrdf"),
     output:
-        estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
+        estimate=directory(layout.ESTIMATE),
     log:
-        "results/logs/merge_svbrdf/{object}_{env}_{poses}_{method}.log",
+        layout.log("merge_svbrdf", "{object}_{env}_{poses}_{method}"),
     benchmark:
-        "results/benchmarks/merge_svbrdf/{object}_{env}_{poses}_{method}.tsv"
+        layout.benchmark("merge_svbrdf", "{object}_{env}_{poses}_{method}")
     wildcard_constraints:
         method=wildcard_pattern(methods_of("merge_svbrdf")),
     conda:

@@ -2,14 +2,14 @@ rule build_object:
     """Procedural mesh with a UV atlas and its seeded ground-truth SVBRDF; a stress
     capture's object is its base object, optionally with a uniform roughness or metallic."""
     input:
-        code=library("make_object"),
+        code=library("build_object"),
     output:
         **object_files("{object}"),
-        **{f"{texture}_png": f"results/objects/{{object}}/{texture}.png" for texture in TEXTURES},
+        **{f"{texture}_png": fill(layout.OBJECT_PREVIEW, texture=texture) for texture in TEXTURES},
     log:
-        "results/logs/build_object/{object}.log",
+        layout.log("build_object", "{object}"),
     benchmark:
-        "results/benchmarks/build_object/{object}.tsv"
+        layout.benchmark("build_object", "{object}")
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -22,4 +22,4 @@ rule build_object:
         seed=lambda wildcards: derived_seed(config["seed"], "object", object_shape(wildcards.object)),
         material=lambda wildcards: stress_material(wildcards.object),
     script:
-        "../workflow/scripts/make_object.py"
+        "../workflow/scripts/build_object.py"

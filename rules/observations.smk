@@ -8,11 +8,11 @@ rule extract_observations:
         envmap=envmap_file,
         code=library("extract_observations"),
     output:
-        directory("results/observations/{object}/{env}/{poses}"),
+        directory(layout.OBSERVATIONS),
     log:
-        "results/logs/extract_observations/{object}_{env}_{poses}.log",
+        layout.log("extract_observations", "{object}_{env}_{poses}"),
     benchmark:
-        "results/benchmarks/extract_observations/{object}_{env}_{poses}.tsv"
+        layout.benchmark("extract_observations", "{object}_{env}_{poses}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2

@@ -7,11 +7,11 @@ rule colmap_poses:
         capture=lambda wildcards: capture_dir(wildcards, "train"),
         code=library("colmap_poses"),
     output:
-        directory("results/poses/{object}/{env}/colmap"),
+        directory(layout.COLMAP_POSES),
     log:
-        "results/logs/colmap_poses/{object}_{env}.log",
+        layout.log("colmap_poses", "{object}_{env}"),
     benchmark:
-        "results/benchmarks/colmap_poses/{object}_{env}.tsv"
+        layout.benchmark("colmap_poses", "{object}_{env}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
@@ -32,12 +32,12 @@ rule colmap_poses:
 rule pose_errors:
     """Registered views and median pose errors of SfM on every synthetic capture, one row each."""
     input:
-        poses=[f"results/poses/{o}/{e}/colmap" for o, e in BENCHMARK_CAPTURES],
+        poses=[fill(layout.COLMAP_POSES, object=o, env=e) for o, e in BENCHMARK_CAPTURES],
         code=library("pose_errors"),
     output:
-        "results/tables/pose_errors.tsv",
+        layout.POSE_ERRORS,
     log:
-        "results/logs/pose_errors.log",
+        layout.log("pose_errors"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:

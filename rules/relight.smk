@@ -10,18 +10,20 @@ rule relight:
     reference test views were rendered. One job per estimate: Mitsuba starts once
     and its compiled kernels serve every environment."""
     input:
-        estimate="results/estimates/{object}/{env}/{poses}/{method}",
-        mesh="results/objects/{object}/mesh.ply",
-        envmaps=lambda w: [f"results/envs/{r}.exr" for r in relight_envs(w.env, w.method)],
+        estimate=layout.ESTIMATE,
+        mesh=layout.OBJECT_MESH,
+        envmaps=lambda w: [fill(layout.ENVMAP, env=r) for r in relight_envs(w.env, w.method)],
         # cameras and reference images, one test capture per environment
-        tests=lambda w: [f"results/captures/{w.object}/{r}/test" for r in relight_envs(w.env, w.method)],
+        tests=lambda w: [
+            fill(layout.CAPTURE, object=w.object, env=r, split="test") for r in relight_envs(w.env, w.method)
+        ],
         code=library("relight"),
     output:
-        directory("results/relight/{object}/{env}/{poses}/{method}"),
+        directory(layout.RELIT),
     log:
-        "results/logs/relight/{object}_{env}_{poses}_{method}.log",
+        layout.log("relight", "{object}_{env}_{poses}_{method}"),
     benchmark:
-        "results/benchmarks/relight/{object}_{env}_{poses}_{method}.tsv"
+        layout.benchmark("relight", "{object}_{env}_{poses}_{method}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2

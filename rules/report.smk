@@ -2,39 +2,60 @@
 # These rules read finished outputs only and take no config that upstream rules
 # use, so changing a metric setting reruns metrics, then these, and nothing else.
 
-from freqbrdf.report.tables.summary import SUMMARY_KEYS as TABLES  # stems of the table files: the paper's Tables 1-6 and the claims
+from freqbrdf.report.tables.summary import (
+    SUMMARY_KEYS as TABLES,
+)  # stems of the table files: the paper's Tables 1-6 and the claims
 
 # Methods with a logged MSE curve (differentiable rendering) and those shown as points.
-CONVERGENCE_CURVES = [m for m in METHODS if METHOD_REGISTRY[m].rule == "mitsuba_svbrdf"]
+CONVERGENCE_CURVES = [m for m in METHODS if METHOD_REGISTRY[m].rule == "mitsuba"]
 CONVERGENCE_POINTS = [m for m in METHODS if METHOD_REGISTRY[m].rule in FREQUENCY_RULES]
+
+
+# Every file the report rules write.
+REPORT_TARGETS = (
+    [fill(layout.TABLE, name=f"{t}.{ext}") for t in TABLES for ext in ("md", "tex")]
+    + [fill(layout.TABLE, name=name) for name in ("tables.md", "tables.html", "claims.html")]
+    + [fill(layout.CAPTURE_FIGURE, object=o, env=e, poses=POSES, name="maps.png") for o, e in CAPTURES]
+    + [fill(layout.CAPTURE_FIGURE, object=o, env=e, poses=POSES, name="relight.png") for o, e in SYNTHETIC_CAPTURES]
+    + [fill(layout.CAPTURE_FIGURE, object=o, env=e, poses=POSES, name="regulariser.png") for o, e in CAPTURES]
+    + [fill(layout.VIEWS, object=o, env=e, poses=POSES, ext="png") for o, e in VIEWS_CAPTURES]
+    + [fill(layout.AGREEMENT, object=o, env=e, poses=POSES, name="agreement.png") for o, e in AGREEMENT_CAPTURES]
+    + [
+        fill(layout.CAPTURE_FIGURE, object=o, env=e, poses=POSES, name="convergence.png")
+        for o, e in (SYNTHETIC_CAPTURES if CONVERGENCE_CURVES else [])
+    ]
+)
 
 
 rule tables:
     """The paper's Tables 1 to 6 with our numbers beside the paper's, and the
     claims table, as Markdown, LaTeX and HTML (the HTML pages are in the report)."""
     input:
-        metrics="results/tables/metrics.csv",
+        metrics=layout.METRICS,
         # The paper's numbers ship with the workflow, not with the working
         # directory: found next to the Snakefile, as the embedded config is,
         # also under --directory (no rule reads config/ relative to the workdir).
         paper=str(REPO / "config" / "paper_results.yaml"),
-        code=library("report_tables"),
+        code=library("tables"),
     output:
-        **{f"{t}_{ext}": f"results/tables/{t}.{ext}" for t in TABLES for ext in ("md", "tex")},
-        all_md="results/tables/tables.md",
+        **{f"{t}_{ext}": fill(layout.TABLE, name=f"{t}.{ext}") for t in TABLES for ext in ("md", "tex")},
+        all_md=fill(layout.TABLE, name="tables.md"),
         html=report(
-            "results/tables/tables.html",
+            fill(layout.TABLE, name="tables.html"),
             category="Tables",
             caption="../report/tables.rst",
             labels={"table": "Tables 1 to 6"},
         ),
         claims_html=report(
-            "results/tables/claims.html", category="Tables", caption="../report/claims.rst", labels={"table": "claims"}
+            fill(layout.TABLE, name="claims.html"),
+            category="Tables",
+            caption="../report/claims.rst",
+            labels={"table": "claims"},
         ),
         # The report's landing page (report/workflow.rst) shows it.
-        run_summary="results/tables/run_summary.html",
+        run_summary=fill(layout.TABLE, name="run_summary.html"),
     log:
-        "results/logs/tables.log",
+        layout.log("tables"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -58,29 +79,31 @@ rule tables:
             "methods": METHODS,
         },
     script:
-        "../workflow/scripts/report_tables.py"
+        "../workflow/scripts/tables.py"
 
 
 rule capture_figure:
     """Ground truth against every method's base colour, roughness and metallic maps,
     with the entropy map (Turbo) and each method's per-texel error."""
     input:
-        estimates=lambda w: [f"results/estimates/{w.object}/{w.env}/{w.poses}/{m}" for m in METHODS],
+        estimates=lambda w: [
+            fill(layout.ESTIMATE, object=w.object, env=w.env, poses=w.poses, method=m) for m in METHODS
+        ],
         # A real capture without ground-truth textures: its figure shows no error maps.
         truth=truth_files,
-        observations="results/observations/{object}/{env}/{poses}",
-        entropy="results/entropy/{object}/{env}/{poses}",
-        code=library("report_figures"),
+        observations=layout.OBSERVATIONS,
+        entropy=layout.ENTROPY,
+        code=library("capture_figure"),
     output:
         report(
-            "results/figures/{object}/{env}/{poses}/maps.png",
+            fill(layout.CAPTURE_FIGURE, name="maps.png"),
             category="Captures",
             subcategory="{object} / {env}",
             caption="../report/capture_maps.rst",
             labels={"capture": "{object} / {env}", "figure": "SVBRDF maps, entropy, error"},
         ),
     log:
-        "results/logs/capture_figure/{object}_{env}_{poses}.log",
+        layout.log("capture_figure", "{object}_{env}_{poses}"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -89,7 +112,7 @@ rule capture_figure:
     params:
         methods=METHODS,
     script:
-        "../workflow/scripts/report_figures.py"
+        "../workflow/scripts/capture_figure.py"
 
 
 rule relight_figure:
@@ -97,18 +120,20 @@ rule relight_figure:
     render, under each held-out environment, with that view's PSNR-H and error image."""
     input:
         relit=lambda w: [relit_dir(w.object, w.env, w.poses, m) for m, _ in capture_relights(w)],
-        references=lambda w: [f"results/captures/{w.object}/{r}/test" for r in relight_figure_envs(w)],
-        code=library("report_figures"),
+        references=lambda w: [
+            fill(layout.CAPTURE, object=w.object, env=r, split="test") for r in relight_figure_envs(w)
+        ],
+        code=library("relight_figure"),
     output:
         report(
-            "results/figures/{object}/{env}/{poses}/relight.png",
+            fill(layout.CAPTURE_FIGURE, name="relight.png"),
             category="Captures",
             subcategory="{object} / {env}",
             caption="../report/capture_relight.rst",
             labels={"capture": "{object} / {env}", "figure": "relighting"},
         ),
     log:
-        "results/logs/relight_figure/{object}_{env}_{poses}.log",
+        layout.log("relight_figure", "{object}_{env}_{poses}"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -120,27 +145,29 @@ rule relight_figure:
         # PSNR-H of the view scored as metrics.csv scores the test set (rules/evaluate.smk)
         metrics={key: config["evaluate"][key] for key in METRIC_KEYS},
     script:
-        "../workflow/scripts/report_figures.py"
+        "../workflow/scripts/relight_figure.py"
 
 
 rule convergence_figure:
     """Parameter MSE against time from the capture: Mitsuba's runs epoch by epoch beside
     the frequency-domain methods (issue 14's equal-accuracy comparison)."""
     input:
-        curves=lambda w: [f"results/estimates/{w.object}/{w.env}/{w.poses}/{m}" for m in CONVERGENCE_CURVES],
-        extraction="results/benchmarks/extract_observations/{object}_{env}_{poses}.tsv",
-        metrics="results/tables/metrics.csv",
-        code=library("report_figures"),
+        curves=lambda w: [
+            fill(layout.ESTIMATE, object=w.object, env=w.env, poses=w.poses, method=m) for m in CONVERGENCE_CURVES
+        ],
+        extraction=layout.benchmark("extract_observations", "{object}_{env}_{poses}"),
+        metrics=layout.METRICS,
+        code=library("convergence_figure"),
     output:
         report(
-            "results/figures/{object}/{env}/{poses}/convergence.png",
+            fill(layout.CAPTURE_FIGURE, name="convergence.png"),
             category="Captures",
             subcategory="{object} / {env}",
             caption="../report/capture_convergence.rst",
             labels={"capture": "{object} / {env}", "figure": "MSE against time"},
         ),
     log:
-        "results/logs/convergence_figure/{object}_{env}_{poses}.log",
+        layout.log("convergence_figure", "{object}_{env}_{poses}"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -151,27 +178,27 @@ rule convergence_figure:
         starts=[METHOD_REGISTRY[m].start for m in CONVERGENCE_CURVES],
         points=CONVERGENCE_POINTS,
     script:
-        "../workflow/scripts/report_figures.py"
+        "../workflow/scripts/convergence_figure.py"
 
 
 rule regulariser_figure:
     """Paper Fig. 3 on a capture's own samples: how well each SH fit option (exp, constant, none,
     zero-padding) keeps a known lobe in the ratio of the spectra of filtered and unfiltered light."""
     input:
-        observations="results/observations/{object}/{env}/{poses}",
+        observations=layout.OBSERVATIONS,
         envmap=envmap_file,
-        code=library("report_figures"),
+        code=library("regulariser_figure"),
     output:
         figure=report(
-            "results/figures/{object}/{env}/{poses}/regulariser.png",
+            fill(layout.CAPTURE_FIGURE, name="regulariser.png"),
             category="Captures",
             subcategory="{object} / {env}",
             caption="../report/capture_regulariser.rst",
             labels={"capture": "{object} / {env}", "figure": "SH fit options"},
         ),
-        table="results/figures/{object}/{env}/{poses}/regulariser.tsv",
+        table=fill(layout.CAPTURE_FIGURE, name="regulariser.tsv"),
     log:
-        "results/logs/regulariser_figure/{object}_{env}_{poses}.log",
+        layout.log("regulariser_figure", "{object}_{env}_{poses}"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:
@@ -183,4 +210,4 @@ rule regulariser_figure:
         alpha=0.3,  # the lobe filtering the light (roughness 0.55, mid-range of the benchmark)
         seed=lambda w: derived_seed(config["seed"], "regulariser", w.object, w.env, w.poses),
     script:
-        "../workflow/scripts/report_figures.py"
+        "../workflow/scripts/regulariser_figure.py"

@@ -8,36 +8,50 @@ OCCLUDED = [(o, e) for o, e in STRESS_CAPTURES if "occluder" in STRESS[o]]
 PAIRS = [((a, STRESS[a]["env"]), (b, STRESS[b]["env"])) for a, b in ambiguity_pairs(STRESS)]
 
 
+# The stress page and figure when the config has stress captures or compared pose sources.
+STRESS_TARGETS = (
+    [
+        fill(layout.TABLE, name="stress.md"),
+        fill(layout.TABLE, name="stress.html"),
+        fill(layout.FIGURE, name="stress.png"),
+    ]
+    if STRESS or POSE_COMPARE
+    else []
+)
+
+
 rule stress_tables:
     """The pose-effect table (each method's MSE and relighting from every pose source),
     each stress capture beside the capture it differs from by one assumption, error and
     entropy inside and outside an unseen occluder's shadow, and the ambiguity pairs."""
     input:
-        metrics="results/tables/metrics.csv",
-        observations=[f"results/observations/{o}/{e}/{POSES}" for o, e in STRESS_CAPTURES],
-        entropy=[f"results/entropy/{o}/{e}/{POSES}" for o, e in STRESS_CAPTURES],
+        metrics=layout.METRICS,
+        observations=[fill(layout.OBSERVATIONS, object=o, env=e, poses=POSES) for o, e in STRESS_CAPTURES],
+        entropy=[fill(layout.ENTROPY, object=o, env=e, poses=POSES) for o, e in STRESS_CAPTURES],
         truth=[object_files(o)[name] for o, _ in STRESS_CAPTURES for name in TEXTURES],
-        estimates=[f"results/estimates/{o}/{e}/{POSES}/{m}" for o, e in STRESS_CAPTURES for m in METHODS],
-        envmaps=[f"results/envs/{e}.exr" for _, e in OCCLUDED],
-        pairs=[f"results/captures/{o}/{e}/train" for pair in PAIRS for o, e in pair],
+        estimates=[
+            fill(layout.ESTIMATE, object=o, env=e, poses=POSES, method=m) for o, e in STRESS_CAPTURES for m in METHODS
+        ],
+        envmaps=[fill(layout.ENVMAP, env=e) for _, e in OCCLUDED],
+        pairs=[fill(layout.CAPTURE, object=o, env=e, split="train") for pair in PAIRS for o, e in pair],
         code=library("stress_tables"),
     output:
-        md="results/tables/stress.md",
+        md=fill(layout.TABLE, name="stress.md"),
         html=report(
-            "results/tables/stress.html",
+            fill(layout.TABLE, name="stress.html"),
             category="Tables",
             caption="../report/stress.rst",
             labels={"table": "stress captures and pose effect"},
         ),
         figure=report(
-            "results/figures/stress.png",
+            fill(layout.FIGURE, name="stress.png"),
             category="Stress captures",
             caption="../report/stress_figure.rst",
             labels={"figure": "entropy and error of the stress captures"},
         ),
-        regions="results/tables/stress_regions.tsv",
+        regions=fill(layout.TABLE, name="stress_regions.tsv"),
     log:
-        "results/logs/stress_tables.log",
+        layout.log("stress_tables"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:

@@ -7,22 +7,33 @@ VIEW_SELECTION_SWEEP_CAPTURES = BENCHMARK_CAPTURES if config["view_selection"]["
 VIEW_SELECTION_SWEEP_KEYS = ["texels", "posterior_min_views", "sweep_counts"]
 
 
+# The ranked candidates of the first synthetic capture and, with view_selection.sweep_counts,
+# the comparison of selection strategies.
+VIEW_SELECTION_TARGETS = [
+    fill(layout.VIEW_SELECTION, object=o, env=e, poses=POSES, name="ranked.tsv") for o, e in VIEW_SELECTION_CAPTURES
+] + (
+    [fill(layout.TABLE, name="view_selection.tsv"), fill(layout.FIGURE, name="view_selection.png")]
+    if VIEW_SELECTION_SWEEP_CAPTURES
+    else []
+)
+
+
 rule view_selection:
     """A capture's candidate poses ranked by the expected decrease of its mean spectrum entropy
     if each were added, from their geometry, the light and the capture's estimate (no images)."""
     input:
         unpack(candidate_poses),
-        observations="results/observations/{object}/{env}/{poses}",
+        observations=layout.OBSERVATIONS,
         mesh=mesh_file,
         envmap=envmap_file,
         code=library("view_selection"),
     output:
-        ranked="results/view_selection/{object}/{env}/{poses}/ranked.tsv",
-        candidates="results/view_selection/{object}/{env}/{poses}/candidates.json",
+        ranked=fill(layout.VIEW_SELECTION, name="ranked.tsv"),
+        candidates=fill(layout.VIEW_SELECTION, name="candidates.json"),
     log:
-        "results/logs/view_selection/{object}_{env}_{poses}.log",
+        layout.log("view_selection", "{object}_{env}_{poses}"),
     benchmark:
-        "results/benchmarks/view_selection/{object}_{env}_{poses}.tsv"
+        layout.benchmark("view_selection", "{object}_{env}_{poses}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
@@ -47,17 +58,17 @@ rule view_selection_sweep:
     """freq's parameter MSE with k training views chosen by expected entropy, at random
     (several seeds) and evenly spread, for each k of view_selection.sweep_counts."""
     input:
-        observations="results/observations/{object}/{env}/{poses}",
+        observations=layout.OBSERVATIONS,
         poses=pose_dir,
         envmap=envmap_file,
         truth=lambda w: [object_files(w.object)[n] for n in TEXTURES],
         code=library("view_selection_sweep"),
     output:
-        table="results/view_selection/{object}/{env}/{poses}/sweep.tsv",
+        table=fill(layout.VIEW_SELECTION, name="sweep.tsv"),
     log:
-        "results/logs/view_selection_sweep/{object}_{env}_{poses}.log",
+        layout.log("view_selection_sweep", "{object}_{env}_{poses}"),
     benchmark:
-        "results/benchmarks/view_selection_sweep/{object}_{env}_{poses}.tsv"
+        layout.benchmark("view_selection_sweep", "{object}_{env}_{poses}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
@@ -82,18 +93,21 @@ rule view_selection_sweep:
 rule view_selection_table:
     """The sweeps of every synthetic capture in one table, and freq's MSE against k per strategy."""
     input:
-        sweeps=[f"results/view_selection/{o}/{e}/{POSES}/sweep.tsv" for o, e in VIEW_SELECTION_SWEEP_CAPTURES],
+        sweeps=[
+            fill(layout.VIEW_SELECTION, object=o, env=e, poses=POSES, name="sweep.tsv")
+            for o, e in VIEW_SELECTION_SWEEP_CAPTURES
+        ],
         code=library("view_selection_table"),
     output:
-        table="results/tables/view_selection.tsv",
+        table=fill(layout.TABLE, name="view_selection.tsv"),
         figure=report(
-            "results/figures/view_selection.png",
+            fill(layout.FIGURE, name="view_selection.png"),
             category="Uncertainty",
             caption="../report/view_selection.rst",
             labels={"figure": "entropy-guided views"},
         ),
     log:
-        "results/logs/view_selection_table.log",
+        layout.log("view_selection_table"),
     conda:
         "../envs/freqbrdf.yaml"
     resources:

@@ -7,22 +7,22 @@ rule views_sweep:
     """freq's parameter MSE and the mean spectrum entropy of one capture restricted to seeded
     random subsets of its training views, each with the band limit of its own count."""
     input:
-        observations="results/observations/{object}/{env}/{poses}",
+        observations=layout.OBSERVATIONS,
         envmap=envmap_file,
         truth=lambda w: [object_files(w.object)[n] for n in TEXTURES],
         code=library("views_sweep"),
     output:
-        table="results/views/{object}/{env}/{poses}/views.tsv",
+        table=fill(layout.VIEWS, ext="tsv"),
         figure=report(
-            "results/views/{object}/{env}/{poses}/views.png",
+            fill(layout.VIEWS, ext="png"),
             category="Uncertainty",
             caption="../report/views.rst",
             labels={"capture": "{object} / {env}", "figure": "views"},
         ),
     log:
-        "results/logs/views_sweep/{object}_{env}_{poses}.log",
+        layout.log("views_sweep", "{object}_{env}_{poses}"),
     benchmark:
-        "results/benchmarks/views_sweep/{object}_{env}_{poses}.tsv"
+        layout.benchmark("views_sweep", "{object}_{env}_{poses}")
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2

@@ -105,7 +105,7 @@ def test_the_model_kernels_rerun_only_the_rules_that_fit_the_model() -> None:
     not reached from the scripts that build, render and extract observations, so changing the model
     does not rerun the renders (numba's thread setter lives apart, in `freqbrdf.util.threads`, for that)."""
     model = {"estimate/optimise/kernels.py", "sphere/lobes.py", "estimate/optimise/__init__.py"}
-    for script in ("make_object", "render_capture", "extract_observations", "fit_sh"):
+    for script in ("build_object", "render_capture", "extract_observations", "fit_sh"):
         modules = set(script_modules(REPO / f"workflow/scripts/{script}.py", PACKAGE))
         assert not modules & model, (script, sorted(modules & model))
     assert model <= set(script_modules(REPO / "workflow/scripts/optimise_svbrdf.py", PACKAGE))

@@ -183,7 +183,7 @@ def test_mitsuba_methods_write_textures_and_one_loss_per_step(repo, run):
         loss = pd.read_csv(estimates / method / "loss.tsv", sep="\t", dtype={"view": str})
         assert sorted(loss.view) == ["000", "001", "002", "003"]  # tiny.yaml: 1 epoch, one view per step
         assert (loss.epoch == 1).all() and np.isfinite(loss.loss).all() and (estimates / method / "loss.png").is_file()
-        bench = (run / f"results/benchmarks/mitsuba_svbrdf/sphere_studio_gt_{method}.tsv").read_text().splitlines()
+        bench = (run / f"results/benchmarks/mitsuba/sphere_studio_gt_{method}.tsv").read_text().splitlines()
         assert float(bench[1].split("\t")[0]) > 0
     # Both move their start: 0.5, or the freq estimate (4 steps of Adam move a
     # texel by at most about 4 lr; freq is on average about 0.2 away from 0.5).
@@ -375,7 +375,7 @@ def test_every_job_stays_within_the_resources_its_rule_declares(repo, run):
     output = snakemake(repo, run, "-n", "-F")
     jobs = measured(run, declared_resources(output.stdout + output.stderr))
     table = by_rule(jobs)
-    assert {"render_capture", "optimise_svbrdf", "mitsuba_svbrdf", "relight", "metrics"} <= set(table.rule)
+    assert {"render_capture", "optimise_svbrdf", "mitsuba", "relight", "metrics"} <= set(table.rule)
     assert not table.over.any(), table[table.over].to_string()
 
 
@@ -619,7 +619,7 @@ def comparable_metrics(workdir):
 def through_mitsuba(method):
     """Whether differentiable rendering produced the method's textures (Dr.Jit's atomics: not bit-reproducible)."""
     entry = METHODS.get(method)
-    return entry is not None and (entry.rule == "mitsuba_svbrdf" or
+    return entry is not None and (entry.rule == "mitsuba" or
                                   (entry.start is not None and through_mitsuba(entry.start)))
 
 

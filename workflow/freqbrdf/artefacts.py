@@ -1,15 +1,15 @@
 """Typed artefacts that rules hand to each other, with one reader and one writer each.
 
-==============  ==========================================  =====================  ==========================================
-artefact        directory                                   written by             read by
-==============  ==========================================  =====================  ==========================================
-`Observations`  ``results/observations/{object}/{env}/{poses}``  extract_observations  fit_sh, spectrum_search, optimise_svbrdf,
-                                                                                   metrics, capture_figure
-`ShFit`         ``results/sh/{object}/{env}/{poses}``        fit_sh                 spectrum_search
-`Svbrdf`        ``results/estimates/.../{method}``,          the estimating rules,  optimise_svbrdf, mitsuba_svbrdf, relight,
-                ``results/objects/{object}`` (ground truth)  build_object           metrics, capture_figure
-`Entropy`       ``results/entropy/{object}/{env}/{poses}``   spectrum_search        metrics, capture_figure
-==============  ==========================================  =====================  ==========================================
+==============  ====================================  =====================  ==========================================
+artefact        directory (`freqbrdf.layout`)         written by             read by
+==============  ====================================  =====================  ==========================================
+`Observations`  ``OBSERVATIONS``                      extract_observations   fit_sh, spectrum_search, optimise_svbrdf,
+                                                                             metrics, capture_figure
+`ShFit`         ``SH_FIT``                            fit_sh                 spectrum_search
+`Svbrdf`        ``ESTIMATE``,                         the estimating rules,  optimise_svbrdf, mitsuba, relight,
+                ``OBJECT_TEXTURE`` (ground truth)     build_object           metrics, capture_figure
+`Entropy`       ``ENTROPY``                           spectrum_search        metrics, capture_figure
+==============  ====================================  =====================  ==========================================
 
 Per-texel arrays are in the order of the observations' texels (``texel``:
 flat atlas indices ``i * R + j``). Readers check the ``format`` string of the

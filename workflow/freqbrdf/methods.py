@@ -18,8 +18,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
-ESTIMATOR_RULES = ("spectrum_search", "optimise_svbrdf", "mitsuba_svbrdf", "merge_svbrdf")
-"""The rules that write ``results/estimates/{object}/{env}/{poses}/{method}``."""
+ESTIMATOR_RULES = ("spectrum_search", "optimise_svbrdf", "mitsuba", "merge_svbrdf")
+"""The rules that write an estimate (`freqbrdf.layout.ESTIMATE`)."""
 
 FREQUENCY_RULES = ("spectrum_search", "optimise_svbrdf")
 """The rules of the frequency-domain methods: they need the observations, Mitsuba's methods do not."""
@@ -102,9 +102,9 @@ METHODS: Mapping[str, Method] = build_registry(
            paper_rows={"table4": "Shadowing"}),
     Method("rh2001", "RH2001 (neither)", "optimise_svbrdf", shadowing=False, masking=False,
            paper_rows={"table4": "Neither"}),
-    Method("mitsuba", "Mitsuba", "mitsuba_svbrdf", entropy_scored=True,
+    Method("mitsuba", "Mitsuba", "mitsuba", entropy_scored=True,
            paper_rows={"table1": "Mitsuba", "table2": "Mitsuba", "table5": "Full optimization - Constant"}),
-    Method("freq+mitsuba", "Ours+Mitsuba", "mitsuba_svbrdf", start="freq",
+    Method("freq+mitsuba", "Ours+Mitsuba", "mitsuba", start="freq",
            paper_rows={"table1": "Ours+Mitsuba (1 epoch)", "table5": "Ours"}),
     # paper Table 6 merges Mitsuba's results: its "Average" row is Mitsuba's Table 2 average
     Method("mitsuba_merged", "Mitsuba, entropy-merged", "merge_svbrdf", start="mitsuba",

@@ -129,7 +129,7 @@ def equal_accuracy_rows(smk, rows, log):
             continue
         curve_file = Path(estimates[obj, env, poses, "mitsuba"]) / "mse_curve.tsv"
         if not curve_file.is_file():
-            raise FileNotFoundError(f"{curve_file}: no MSE curve (rerun mitsuba_svbrdf for this capture)")
+            raise FileNotFoundError(f"{curve_file}: no MSE curve (rerun rule mitsuba for this capture)")
         curve = pd.read_csv(curve_file, sep="\t")
         for method in (m for m in smk.params.methods if METHODS[m].rule in FREQUENCY_RULES):
             target, total = value.get((obj, env, poses, method, "mse_average")), value.get((obj, env, poses, method, "time_total_s"))

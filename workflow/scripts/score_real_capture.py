@@ -1,6 +1,6 @@
 """Rule score_real_capture: parameter MSE and entropy-error correlation of a real capture with ground truth.
 
-Rows have the columns of results/tables/metrics.csv (rule metrics), computed the
+Rows have the columns of the metrics table (rule metrics), computed the
 same way: MSE over the texels some training view observes, Pearson's r between
 the entropy and the per-texel error of the entropy-scored methods.
 """

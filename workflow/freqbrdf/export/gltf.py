@@ -35,7 +35,7 @@ from freqbrdf.util.colour import to_srgb
 from freqbrdf.util.io import atomic_path
 from freqbrdf.scene.meshes import Mesh
 
-__all__ = ["GltfMaterial", "GltfScene", "srgb_to_linear", "quantise", "material_images", "textures_from_images",
+__all__ = ["write_textures_glb", "GltfMaterial", "GltfScene", "srgb_to_linear", "quantise", "material_images", "textures_from_images",
            "encode_png", "decode_png", "glb_bytes", "write_glb", "read_glb"]
 
 _FLOAT, _UINT32 = 5126, 5125  # glTF accessor componentTypes
@@ -277,6 +277,15 @@ def write_glb(path: str | os.PathLike, mesh: Mesh, materials: Sequence[GltfMater
     data = glb_bytes(mesh, materials)
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
+
+
+def write_textures_glb(path: str | os.PathLike, mesh: Mesh, textures: Mapping[str, np.ndarray], name: str) -> str:
+    """Linear SVBRDF textures (``base_color`` (R, R, 3), ``roughness``, ``metallic`` (R, R)) on
+    ``mesh`` as a .glb with one material called ``name`` (`write_glb`); returns a one-line
+    summary for the job's log."""
+    write_glb(path, mesh, [GltfMaterial.from_textures(name, textures)])
+    size = textures["base_color"].shape
+    return f"{path}: {len(mesh.faces)} triangles, {size[0]}x{size[1]} textures"
 
 
 def _accessor_array(gltf, blob: bytes, index: int, path: Path) -> np.ndarray:

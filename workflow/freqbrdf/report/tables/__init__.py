@@ -5,7 +5,7 @@ One module per concern; this package imports none of them (a rule's inputs are t
 script imports, so each script imports only the modules it uses):
 
 - :mod:`freqbrdf.report.tables.paper`: the paper's numbers (``config/paper_results.yaml``);
-- :mod:`freqbrdf.report.tables.tidy`: queries on the tidy metrics table ``results/tables/metrics.csv``;
+- :mod:`freqbrdf.report.tables.tidy`: queries on the tidy metrics table (`freqbrdf.layout.METRICS`);
 - :mod:`freqbrdf.report.tables.display`: how the cells show numbers and methods;
 - :mod:`freqbrdf.report.tables.tables`: the tables, DataFrames of display strings;
 - :mod:`freqbrdf.report.tables.claims`: the paper's claims, checked on a run;

@@ -1,6 +1,6 @@
 """Queries on the tidy metrics table, the input of every table and claim.
 
-The tidy table ``results/tables/metrics.csv`` has one row per
+The tidy table (`freqbrdf.layout.METRICS`) has one row per
 number, columns ``object, env, poses, method, relight_env, metric, value``
 (``relight_env`` empty for rows that are not about relighting). Metric names:
 

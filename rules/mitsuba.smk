@@ -2,7 +2,7 @@
 # method's estimate (freq+mitsuba) with Mitsuba 3.
 
 
-rule mitsuba_svbrdf:
+rule mitsuba:
     """SVBRDF textures by differentiable rendering: Mitsuba's prb integrator and
     Adam on the base colour, roughness and metallic textures of a principled
     BSDF, one training view per step (mitsuba: from 0.5; freq+mitsuba: from freq)."""
@@ -13,15 +13,15 @@ rule mitsuba_svbrdf:
         poses=pose_dir,
         mesh=mesh_file,
         envmap=envmap_file,
-        code=library("mitsuba_svbrdf"),
+        code=library("mitsuba"),
     output:
-        estimate=directory("results/estimates/{object}/{env}/{poses}/{method}"),
+        estimate=directory(layout.ESTIMATE),
     log:
-        "results/logs/mitsuba_svbrdf/{object}_{env}_{poses}_{method}.log",
+        layout.log("mitsuba", "{object}_{env}_{poses}_{method}"),
     benchmark:
-        "results/benchmarks/mitsuba_svbrdf/{object}_{env}_{poses}_{method}.tsv"
+        layout.benchmark("mitsuba", "{object}_{env}_{poses}_{method}")
     wildcard_constraints:
-        method=wildcard_pattern(methods_of("mitsuba_svbrdf")),
+        method=wildcard_pattern(methods_of("mitsuba")),
     conda:
         "../envs/freqbrdf.yaml"
     threads: 2
@@ -34,4 +34,4 @@ rule mitsuba_svbrdf:
         resolution=config["textures"]["resolution"],
         settings=mitsuba_settings,
     script:
-        "../workflow/scripts/mitsuba_svbrdf.py"
+        "../workflow/scripts/mitsuba.py"

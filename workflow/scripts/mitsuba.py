@@ -1,4 +1,4 @@
-"""Rule mitsuba_svbrdf: SVBRDF textures by differentiable rendering (Mitsuba 3 prb + Adam);
+"""Rule mitsuba: SVBRDF textures by differentiable rendering (Mitsuba 3 prb + Adam);
 method mitsuba starts from a constant 0.5, freq+mitsuba from the freq estimate."""
 
 from pathlib import Path

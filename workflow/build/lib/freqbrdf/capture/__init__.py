@@ -1,1 +1,0 @@
-"""Captures: their exchange layouts and meshes, camera poses by SfM, per-texel observations."""

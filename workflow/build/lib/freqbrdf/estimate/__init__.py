@@ -1,1 +1,0 @@
-"""Estimators: SH fits, the spectrum search, the light model, the gradient-descent estimator, Mitsuba's baseline, merges."""

@@ -1,1 +1,0 @@
-"""Exports: glTF materials, RGBE environments, the offline viewer."""

@@ -1,1 +1,0 @@
-"""Evaluation and report: metrics, tables and claims, figures."""

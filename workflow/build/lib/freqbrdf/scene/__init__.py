@@ -1,1 +1,0 @@
-"""Synthetic scenes: procedural objects and textures, environment maps, cameras, rendering, ray casting."""

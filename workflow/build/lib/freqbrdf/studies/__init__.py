@@ -1,1 +1,0 @@
-"""Studies beyond the benchmark's tables: views sweep, view selection, entropy agreement, stress captures."""

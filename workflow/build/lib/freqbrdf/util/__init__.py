@@ -1,1 +1,0 @@
-"""Shared utilities: file I/O, logging, argument checks, colour, threads, Mitsuba set-up."""

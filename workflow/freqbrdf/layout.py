@@ -1,0 +1,95 @@
+"""Where every result lives: the path templates of ``results/``, one per artefact.
+
+The rules (``rules/*.smk``) use the templates as outputs, with their named wildcards
+(``{object}``, ``{env}``, ``{split}``, ``{poses}``, ``{method}``, ...), and fill them with
+`str.format` where they name another rule's output; the benches fill them the same way.
+Scripts never build a path: they take every path from Snakemake (``tests/test_layout.py``).
+A path template changes here, and nowhere else.
+"""
+
+from __future__ import annotations
+
+__all__ = ["RESULTS", "fill", "log", "benchmark"]
+
+RESULTS = "results"
+
+# Synthetic scenes (rules/objects.smk, rules/envs.smk, rules/captures.smk)
+OBJECT_MESH = "results/objects/{object}/mesh.ply"
+OBJECT_TEXTURE = "results/objects/{object}/{texture}.exr"
+OBJECT_PREVIEW = "results/objects/{object}/{texture}.png"
+ENVMAP = "results/envs/{env}.exr"
+ENVMAP_PREVIEW = "results/envs/{env}.png"
+ENVMAP_HDR = "results/envs/{env}.hdr"
+ENV_SPECTRUM = "results/envs/{env}_spectrum.{ext}"
+ENV_SPECTRA = "results/envs/spectra.png"
+CAPTURE = "results/captures/{object}/{env}/{split}"
+
+# Captures made elsewhere (rules/exchange.smk)
+EXPORT = "results/exports/{object}/{env}"
+IMPORT_SPLIT = "results/imports/{object}/{split}"
+IMPORT_MESH = "results/imports/{object}/mesh.ply"
+IMPORT_ENVMAP_GIVEN = "results/imports/{object}/envmap_given.exr"
+IMPORT_ENVMAP = "results/imports/{object}/envmap.exr"
+IMPORT_ORIENTATION = "results/imports/{object}/env_orientation.tsv"
+IMPORT_ROTATION = "results/imports/{object}/env_rotation.json"
+IMPORT_TRUTH = "results/imports/{object}/truth/{texture}.exr"
+REAL_SCORES = "results/tables/real/{object}_{env}_{poses}.csv"
+REAL_RELIGHT_SCORES = "results/tables/real/{object}_{env}_{poses}_relight.csv"
+
+# Poses, observations, estimates (rules/poses.smk to rules/merge.smk)
+COLMAP_POSES = "results/poses/{object}/{env}/colmap"
+POSE_ERRORS = "results/tables/pose_errors.tsv"
+OBSERVATIONS = "results/observations/{object}/{env}/{poses}"
+SH_FIT = "results/sh/{object}/{env}/{poses}"
+ESTIMATE = "results/estimates/{object}/{env}/{poses}/{method}"
+ENTROPY = "results/entropy/{object}/{env}/{poses}"
+
+# Relighting (rules/relight.smk, rules/exchange.smk): a subdirectory per relighting environment
+RELIT = "results/relight/{object}/{env}/{poses}/{method}"
+RELIT_REAL = "results/relight_real/{object}/{env}/{poses}/{method}"
+
+# Studies (rules/views.smk, rules/entropy_agreement.smk, rules/view_selection.smk, rules/stress.smk)
+VIEWS = "results/views/{object}/{env}/{poses}/views.{ext}"
+AGREEMENT = "results/entropy_agreement/{object}/{env}/{poses}/{name}"
+VIEW_SELECTION = "results/view_selection/{object}/{env}/{poses}/{name}"
+
+# Evaluation, report and exports (rules/evaluate.smk, rules/report.smk, rules/export.smk)
+METRICS = "results/tables/metrics.csv"
+TABLE = "results/tables/{name}"
+FIGURE = "results/figures/{name}"
+CAPTURE_FIGURE = "results/figures/{object}/{env}/{poses}/{name}"
+GLTF = "results/gltf/{object}/{env}/{poses}/{method}.glb"
+TRUTH = "truth"  # the ground truth's name beside the methods': its .glb file, glTF node and material, viewer panel
+TRUTH_GLTF = "results/gltf/{object}/" + TRUTH + ".glb"
+VIEWER = "results/viewer/{object}/{env}/{poses}/viewer.html"
+
+# What every job leaves beside its outputs
+LOG = "results/logs/{rule}/{job}.log"
+BENCHMARK = "results/benchmarks/{rule}/{job}.tsv"
+
+
+class _Wildcards(dict):
+    """Fields not given to `fill` stay in the path as wildcards."""
+
+    def __missing__(self, key: str) -> str:
+        return "{" + key + "}"
+
+
+def fill(template: str, **values: object) -> str:
+    """``template`` with the fields in ``values`` filled and every other field left as a wildcard.
+
+    >>> fill(ESTIMATE, method="spectrum")
+    'results/estimates/{object}/{env}/{poses}/spectrum'
+    """
+    return template.format_map(_Wildcards(values))
+
+
+def log(rule: str, job: str = "") -> str:
+    """Log file of one job of ``rule``: ``job`` names it by its wildcards (``"{object}_{env}"``);
+    a rule with a single job has ``results/logs/{rule}.log``."""
+    return LOG.format(rule=rule, job=job) if job else f"{RESULTS}/logs/{rule}.log"
+
+
+def benchmark(rule: str, job: str = "") -> str:
+    """Snakemake benchmark file (time, memory) of one job of ``rule``, named as `log` names its log."""
+    return BENCHMARK.format(rule=rule, job=job) if job else f"{RESULTS}/benchmarks/{rule}.tsv"

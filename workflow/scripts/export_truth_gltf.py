@@ -1,0 +1,15 @@
+"""Rule export_truth_gltf: a synthetic object's ground-truth textures on its mesh as binary glTF (.glb)."""
+
+from freqbrdf.artefacts import read_svbrdf
+from freqbrdf.export.gltf import write_textures_glb
+from freqbrdf.scene.ply import read_ply
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.util.logs import run_script
+
+
+def main(smk, log):
+    textures = read_svbrdf({name: smk.input[name] for name in TEXTURES})  # the object's texture files
+    log.info(write_textures_glb(smk.output[0], read_ply(smk.input.mesh), textures, smk.params.name))
+
+
+run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)
