@@ -150,3 +150,28 @@ def test_optimise_settings_follow_the_config(default):
     assert ggx.min_roughness == identifiable_roughness(opt["lmax"], lobe="ggx") > settings.min_roughness
     assert (settings.iterations, settings.lr, settings.tv_weight) == (opt["iterations"], opt["lr"], opt["tv_weight"])
     assert OptimiseSettings.from_config(default["optimise"]).solver == "adam"
+
+
+def test_the_paper_preset_is_paper_yaml_over_the_default(repo, schema, default):
+    """One place for the estimator's defaults: the config's; ``OptimiseSettings`` has none for the
+    fields it sets, and its preset ``paper()`` is what ``config/paper.yaml`` over the default builds."""
+    import dataclasses
+
+    from freqbrdf.estimate.optimise.settings import OptimiseSettings
+
+    config_set = set(yaml.safe_load(schema.read_text())["properties"]["optimise"]["properties"])
+    held = config_set - {"init", "lmax", "point_sources"} | {"grid_start"}  # init: grid -> grid_start
+    assert {f.name for f in dataclasses.fields(OptimiseSettings)
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING} == held
+    with pytest.raises(TypeError):
+        OptimiseSettings()
+    merged = copy.deepcopy(default)
+    update_config(merged, yaml.safe_load((repo / "config" / "paper.yaml").read_text()))
+    paper, preset = OptimiseSettings.from_config(merged["optimise"]), OptimiseSettings.paper()
+    assert {name: getattr(paper, name) for name in held} == {name: getattr(preset, name) for name in held}
+    assert paper == preset  # the implementation's own fields keep their code defaults in both
+    assert merged["optimise"]["point_sources"]["max_radius_deg"] == 0  # the paper's light: all through the SH
+    assert OptimiseSettings.from_config(default["optimise"]) != preset  # the default is tuned away from it
+    assert OptimiseSettings.paper(iterations=300, lr=0.01) == dataclasses.replace(preset, iterations=300, lr=0.01)
+    with pytest.raises(ValueError, match="lr must be a finite number > 0"):
+        OptimiseSettings.paper(lr=0)

@@ -1,4 +1,4 @@
-"""The code-layout rules of the README's "Layout": short modules and functions, no private names
+"""The code-layout rules of the README's "Layout and module map": short modules and functions, no private names
 imported across modules, and scripts that take every path from Snakemake rather than building one."""
 
 from __future__ import annotations

@@ -7,15 +7,12 @@ import functools
 import numpy as np
 import pytest
 
-import oracles
 from freqbrdf.scene import envmaps, render
 from freqbrdf.sphere import sampling, sh
 from freqbrdf.estimate import light as lt
 from freqbrdf.estimate.optimise.settings import OptimiseSettings
 from freqbrdf.estimate.optimise.solve import optimise
-from freqbrdf.artefacts import Observations
-from freqbrdf.sphere.brdf import R0_DIELECTRIC
-from freqbrdf.estimate.shfit import mirror_directions
+from freqbrdf.studies.recovery_capture import ROUGHNESS, capture_observations, oracle_capture
 
 
 def exact_irradiance(env: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -106,71 +103,13 @@ def test_prefilter_multiplies_each_degree() -> None:
 
 
 # --------------------------------------------------------------------------
-# recovery from the paper's model at degree 32 (issue 12)
+# recovery from the paper's model at degree 32 (issue 12; the capture: freqbrdf.studies.recovery_capture)
 # --------------------------------------------------------------------------
-ORACLE_LMAX = 32
-ROUGHNESS = (0.35, 0.5, 0.7, 0.9)
-PER_VALUE = 16
-
-
-def oracle_capture(env: np.ndarray, seed: int) -> tuple[dict, dict]:
-    """Noise-free observations of the paper's lobe exp(-(alpha l)^2), Fresnel, shadowing and
-    masking on the unfiltered environment at degree 32: the shadowed light is integrated over
-    the map's own pixels per texel, not through the estimator's quadrature or its degree.
-
-    Texels with normals over the upper hemisphere see 24 cameras on a world Fibonacci upper
-    hemisphere (as the benchmark rig), a fifth of them occluded at random.
-    """
-    rng = np.random.default_rng(seed)
-    t = len(ROUGHNESS) * PER_VALUE
-    truth = {
-        "roughness": np.repeat(ROUGHNESS, PER_VALUE),
-        "metallic": np.tile(np.repeat([0.0, 1.0], PER_VALUE // 2), len(ROUGHNESS)),
-        "base_color": rng.uniform(0.15, 0.9, (t, 3)),
-    }
-    normal = rng.normal(size=(t, 3))
-    normal[:, 1] = 0.5 * np.abs(normal[:, 1])
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    helper = np.where(np.abs(normal[:, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
-    tangent = np.cross(helper, normal)
-    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
-    frame = np.stack([tangent, np.cross(normal, tangent), normal], axis=1)
-    wo = np.einsum("tij,kj->tki", frame, sampling.fibonacci_hemisphere(24))
-    weight = np.where(wo[..., 2] > 0.05, wo[..., 2], 0.0) * (rng.random((t, 24)) >= 0.2)
-
-    h, w = env.shape[:2]
-    d = sampling.equirect_directions(h, w).reshape(-1, 3)
-    power = (env * sampling.equirect_solid_angles(h, w)[:, None, None]).reshape(-1, 3)
-    alpha = truth["roughness"] ** 2
-    cos = normal @ d.T
-    shadow = np.where(cos > 0, oracles.smith_g1(np.where(cos > 0, cos, 1.0), alpha[:, None]), 0.0)
-    basis = sh.real_sh(d, ORACLE_LMAX)
-    lg = np.stack([(shadow * power[:, c]) @ basis for c in range(3)], axis=-1)
-    mirror = np.einsum("tji,tkj->tki", frame, mirror_directions(wo))
-    lobe = np.exp(-((alpha[:, None] * sh.sh_degrees(ORACLE_LMAX)) ** 2))
-    spec = np.einsum("tki,ti,tic->tkc", sh.real_sh(mirror, ORACLE_LMAX), lobe, lg)
-    cos_o = wo[..., 2:3]
-    m, base = truth["metallic"][:, None, None], truth["base_color"][:, None, :]
-    r0 = R0_DIELECTRIC * (1 - m) + m * base
-    fresnel = r0 + (1 - r0) * (1 - np.clip(cos_o, 0, 1)) ** 5
-    masking = oracles.smith_g1(np.clip(cos_o, 1e-6, 1), alpha[:, None, None])
-    irradiance = np.maximum(cos, 0.0) @ power
-    radiance = (1 - m) * base * irradiance[:, None, :] / np.pi + fresnel * masking * spec
-    capture = {"radiance": np.where(weight[..., None] > 0, radiance, 0.0), "weight": weight, "wo_local": wo,
-               "frame": frame, "texel": np.arange(t), "resolution": int(np.ceil(np.sqrt(t)))}
-    return capture, truth
-
-
-def observations(capture: dict) -> Observations:
-    return Observations.from_arrays(*(capture[k] for k in ("radiance", "weight", "wo_local", "frame", "texel",
-                                                           "resolution")))
-
-
 @pytest.mark.parametrize("name", ["studio", "sunny"])
 def test_recovers_the_paper_model_above_the_band_limit(name: str, request) -> None:
     """Issue 12: at 24 views roughness 0.5, 0.7 and 0.9 within 0.03 and 0.35 within 0.05 (alpha
     0.12, below the views' a' = 0.2), base colour and metallic within 0.02, from the grid start
-    with the default settings but no TV (independent texels).
+    with the paper's settings (`OptimiseSettings.paper`) but no TV (independent texels).
 
     Measured at the model's degree 20: studio, every error below 0.007; sunny, roughness within
     0.019, metallic within 0.01, base colour within 0.02 on all but a few texels (largest
@@ -181,8 +120,8 @@ def test_recovers_the_paper_model_above_the_band_limit(name: str, request) -> No
     env = lt.downsample_equirect(env, 128)  # a 1.4-degree grid keeps the per-texel oracle quick
     capture, truth = oracle_capture(env, seed=0)
     est, _ = optimise(
-        observations(capture), lt.irradiance(env, capture["frame"][:, 2]), lt.light_quadrature(env, 20), None,
-        "freq", OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0),
+        capture_observations(capture), lt.irradiance(env, capture["frame"][:, 2]), lt.light_quadrature(env, 20), None,
+        "freq", settings=OptimiseSettings.paper(iterations=300, lr=0.01, tv_weight=0.0),
     )
     for r, tolerance in zip(ROUGHNESS, (0.05, 0.03, 0.03, 0.03)):
         sel = truth["roughness"] == r
@@ -203,10 +142,10 @@ def test_the_papers_prefiltered_light_biases_roughness_low() -> None:
     while the unfiltered light recovers it."""
     env = lt.downsample_equirect(ENVS["studio"](), 128)
     capture, truth = oracle_capture(env, seed=1)
-    settings = OptimiseSettings(iterations=300, lr=0.01, tv_weight=0.0)
-    args = (observations(capture), lt.irradiance(env, capture["frame"][:, 2]))
+    settings = OptimiseSettings.paper(iterations=300, lr=0.01, tv_weight=0.0)
+    args = (capture_observations(capture), lt.irradiance(env, capture["frame"][:, 2]))
     sel = truth["roughness"] == 0.7
-    paper, _ = optimise(*args, lt.light_quadrature(env, 16, prefilter=24**-0.5), None, "freq", settings)
-    ours, _ = optimise(*args, lt.light_quadrature(env, 16), None, "freq", settings)
+    paper, _ = optimise(*args, lt.light_quadrature(env, 16, prefilter=24**-0.5), None, "freq", settings=settings)
+    ours, _ = optimise(*args, lt.light_quadrature(env, 16), None, "freq", settings=settings)
     assert np.median(0.7 - paper["roughness"][sel]) > 0.03
     assert np.abs(ours["roughness"][sel] - 0.7).max() < 0.03

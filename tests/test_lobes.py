@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-import oracles
 import pytest
-from test_light import ENVS, observations, oracle_capture
+from test_light import ENVS
 
 from freqbrdf.estimate.optimise import kernels
 from freqbrdf.estimate import light as lt
@@ -14,6 +13,8 @@ from freqbrdf.estimate.optimise.model import forward, light_terms
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params
 from freqbrdf.estimate.optimise.settings import OptimiseSettings
 from freqbrdf.sphere.brdf import ALPHA_MIN
+from freqbrdf.sphere.reference import ggx_radiance, smith_g1
+from freqbrdf.studies.recovery_capture import capture_observations, oracle_capture
 from freqbrdf.sphere.lobes import (
     DIFFUSE_LOBES,
     LOBE_NODES,
@@ -98,7 +99,7 @@ def specular_albedo_by_angles(alpha: float, mu: float, n: int = 1500) -> tuple[f
     half = wi + wo
     half /= np.linalg.norm(half, axis=-1, keepdims=True)
     d = alpha**2 / (np.pi * (half[..., 2] ** 2 * (alpha**2 - 1) + 1) ** 2)
-    g = oracles.smith_g1(wi[..., 2], alpha) * oracles.smith_g1(mu, alpha)
+    g = smith_g1(wi[..., 2], alpha) * smith_g1(mu, alpha)
     c5 = (1 - np.clip(half @ wo, 0, 1)) ** 5
     measure = d * g / (4 * mu) * np.sin(t) * (np.pi / 2 / n) * (np.pi / n)  # f_s cos theta_i d omega_i
     return float((measure * (1 - c5)).sum()), float((measure * c5).sum())
@@ -117,7 +118,7 @@ def test_uniform_response_is_the_models_specular_term_under_a_uniform_light() ->
     quadrature of the horizon accounts for the few largest differences, at grazing views)."""
     env = np.ones((64, 128, 3))
     capture, truth = oracle_capture(env, seed=1)
-    problem = build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
+    problem = build_problem(capture_observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
     truth = truth | {"metallic": np.ones(truth["roughness"].size), "base_color": np.ones((truth["roughness"].size, 3))}
     for lobe in ("gaussian", "ggx"):
         light = light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 12))
@@ -177,12 +178,12 @@ def test_kernels_interpolate_the_view_table() -> None:
 def test_albedo_weight_matches_ggx_under_a_uniform_light() -> None:
     """The split sum is exact under a uniform light: the model with the albedo weight and the
     principled diffuse term at the true parameters gives the brute-force radiance of the principled
-    BSDF (`oracles.ggx_radiance`) for every observation within 2% (interpolation and truncation),
+    BSDF (`freqbrdf.sphere.reference.ggx_radiance`) for every observation within 2% (interpolation and truncation),
     where the paper's weights miss rough metals at grazing views by a factor of 2-5."""
     env = np.ones((64, 128, 3))
     capture, truth = oracle_capture(env, seed=0)
-    ggx = oracles.ggx_radiance(env, capture, truth).sum(-1)
-    problem = build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
+    ggx = ggx_radiance(env, capture, truth).sum(-1)
+    problem = build_problem(capture_observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
     light = light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 20))
     seen = capture["weight"] > 0
     ratio = {}
@@ -203,9 +204,9 @@ def test_view_weight_names_are_checked() -> None:
     with pytest.raises(ValueError, match="view must be a view_table, got shape \\(3, 2, 2\\)"):
         kernels.l1_loss_gradient(np.zeros((1, 5)), np.zeros((1, 9, 3)), PairData(np.array([0, 1]), np.zeros((1, 3)), np.zeros(1), np.zeros(1), np.zeros((1, 3))), KernelModel(False, view=np.zeros((3, 2, 2)), r0_dielectric=0.04))
     with pytest.raises(ValueError, match="view_weight must be one of"):
-        OptimiseSettings(view_weight="albedos")
+        OptimiseSettings.paper(view_weight="albedos")
     with pytest.raises(ValueError, match="diffuse must be one of"):
-        OptimiseSettings(diffuse="oren")
+        OptimiseSettings.paper(diffuse="oren")
 
 
 @pytest.mark.parametrize("masking", [True, False])
@@ -217,7 +218,7 @@ def test_the_principled_diffuse_term_scales_the_papers_model(masking: bool) -> N
     env = ENVS["studio"]()
     env = lt.downsample_equirect(env, 64)
     capture, truth = oracle_capture(env, seed=2)
-    problem = build_problem(observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
+    problem = build_problem(capture_observations(capture), lt.irradiance(env, capture["frame"][:, 2]), "float64")
     light = light_terms(truth["roughness"], problem, True, lt.light_quadrature(env, 12))
     x, lobe = pack_params(truth, problem.n_texels), lobe_table("ggx", 12)
     closed = forward(x, problem, light, KernelModel(masking, lobe))

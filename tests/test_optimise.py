@@ -17,7 +17,7 @@ from freqbrdf.estimate.optimise.solve import optimise
 from freqbrdf.estimate.optimise import problem as problem_module
 from freqbrdf import methods
 from freqbrdf.estimate.optimise import kernels
-from freqbrdf.sphere import sampling, sh
+from freqbrdf.sphere import reference, sampling, sh
 from freqbrdf.sphere.lobes import ggx_lobe_spectrum
 
 OPTIMISER_METHODS = methods.methods_of("optimise_svbrdf")
@@ -120,7 +120,7 @@ MODELS = [("gaussian", "paper", "lambert"), ("ggx", "paper", "lambert"), ("ggx",
 def tables(model: tuple[str, str, str], method: str) -> tuple[np.ndarray, np.ndarray]:
     """The lobe and view tables `optimise` uses for ``method`` with ``model``."""
     lobe, weight, diffuse = model
-    return model_tables(OptimiseSettings(lobe=lobe, view_weight=weight, diffuse=diffuse), method, LMAX)
+    return model_tables(OptimiseSettings.paper(lobe=lobe, view_weight=weight, diffuse=diffuse), method, LMAX)
 
 
 def render(scene: dict, params: dict, method: str, model: tuple[str, str, str] = MODELS[0]) -> np.ndarray:
@@ -135,7 +135,7 @@ def run(
     scene: dict, radiance: np.ndarray, method: str, init: dict | None = None, **settings: object
 ) -> tuple[dict, np.ndarray]:
     return optimise(observations(scene, radiance), scene["irradiance"], scene["light"], init, method,
-                       OptimiseSettings(**settings))
+                    settings=OptimiseSettings.paper(**settings))
 
 
 @pytest.fixture(scope="module")
@@ -272,7 +272,7 @@ def test_rough_dielectric_under_constant_light(method: str) -> None:
     b = forward(pack_params(params, 6), problem, light, KernelModel(masking))
     cos = scene["wo_local"][..., 2]
     fresnel = oracles.schlick_fresnel(0.04, cos)[..., None]
-    g1 = oracles.smith_g1(cos, 1.0)[..., None]
+    g1 = reference.smith_g1(cos, 1.0)[..., None]
     obs = scene["weight"] > 0
     if not shadowing:
         # a constant has only a DC term: Spec = L0 for any alpha
@@ -299,7 +299,7 @@ def test_variants_differ_only_where_they_should() -> None:
     diffuse = (kd * scene["irradiance"] / np.pi)[:, None, :]
     obs = scene["weight"] > 0
     spec = {m: render(scene, params, m) - diffuse for m in OPTIMISER_METHODS}
-    g1 = oracles.smith_g1(scene["wo_local"][..., 2], params["roughness"][:, None] ** 2)[..., None]
+    g1 = reference.smith_g1(scene["wo_local"][..., 2], params["roughness"][:, None] ** 2)[..., None]
     # masking multiplies the specular term by G1(theta_o) and nothing else
     np.testing.assert_allclose(spec["freq_noshadow"][obs], (g1 * spec["rh2001"])[obs], rtol=1e-10, atol=1e-13)
     np.testing.assert_allclose(spec["freq"][obs], (g1 * spec["freq_nomask"])[obs], rtol=1e-10, atol=1e-13)
@@ -375,7 +375,7 @@ def test_threads_do_not_change_results() -> None:
     np.testing.assert_array_equal(light, light_terms(x[:, 3], problem, True, scene["light"], workers=2))
     obs = observations(scene, render(scene, params, "freq") * 1.1)
     lm = [optimise(obs, scene["irradiance"], scene["light"], method="freq",
-                      settings=OptimiseSettings(solver="lm", sweeps=4, sweep_refit_every=2, workers=w))
+                      settings=OptimiseSettings.paper(solver="lm", sweeps=4, sweep_refit_every=2, workers=w))
           for w in (1, 2)]
     for k in TEXTURES:
         np.testing.assert_array_equal(lm[0][0][k], lm[1][0][k])
@@ -580,7 +580,7 @@ def test_bad_inputs_are_named(small: dict) -> None:
         obs = Observations.from_arrays(*(args[k] for k in ("radiance", "weight", "wo_local", "frame", "texel",
                                                             "resolution")))
         optimise(obs, args["irradiance"], args["light"], init=args.get("init"), method=args.get("method", "freq"),
-                    settings=OptimiseSettings(iterations=1))
+                    settings=OptimiseSettings.paper(iterations=1))
 
     with pytest.raises(ValueError, match="method must be one of .* got 'frq'"):
         call(method="frq")
@@ -605,15 +605,15 @@ def test_bad_inputs_are_named(small: dict) -> None:
     with pytest.raises(ValueError, match="lacks \\['metallic'\\]"):
         call(init={"base_color": init["base_color"], "roughness": np.zeros(18)})
     with pytest.raises(ValueError, match="lr must be a finite number > 0, got -1"):
-        OptimiseSettings(lr=-1)
+        OptimiseSettings.paper(lr=-1)
     with pytest.raises(ValueError, match=r"frame must have shape \(18, 3, 3\)"):
         call(frame=small["frame"][:5])
     with pytest.raises(ValueError, match="min_roughness must be in \\[0, 1\\), got 1.0"):
-        OptimiseSettings(min_roughness=1.0)
+        OptimiseSettings.paper(min_roughness=1.0)
     with pytest.raises(ValueError, match="solver must be one of \\('adam', 'lm'\\), got 'newton'"):
-        OptimiseSettings(solver="newton")
+        OptimiseSettings.paper(solver="newton")
     with pytest.raises(ValueError, match="irls_floor must be a finite number > 0, got 0"):
-        OptimiseSettings(irls_floor=0)
+        OptimiseSettings.paper(irls_floor=0)
 
 
 @pytest.mark.parametrize("schedule", [{"iterations": 60, "lr": 0.05}, {"solver": "lm", "sweeps": 10}])

@@ -645,7 +645,7 @@ def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
     ours, theirs = comparable_metrics(run), comparable_metrics(tmp_path)
     assert len(theirs) > 100 and (theirs.method == ours.method).all()
     # Dr.Jit sums the differentiable renderer's gradients with atomics across threads, so the
-    # methods it optimises differ slightly from run to run (README, "Differentiable-rendering
+    # methods it optimises differ slightly from run to run (docs/baseline.md, "Differentiable-rendering
     # baseline"; between two tiny runs: up to 3e-5 in PSNR-H, 7e-4 in a near-zero Pearson r);
     # everything else is bit-identical
     loose = ours.method.map(through_mitsuba).to_numpy()

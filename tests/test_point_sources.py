@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import oracles
 import pytest
 from test_optimise import MODELS, OPTIMISER_METHODS, central_differences, local_hemisphere, tables, variant
 
@@ -14,6 +13,8 @@ from freqbrdf.estimate.optimise.problem import build_problem, pack_params
 from freqbrdf.estimate.optimise.settings import OptimiseSettings
 from freqbrdf.estimate.optimise.solve import optimise
 from freqbrdf.sphere import sampling
+from freqbrdf.sphere.reference import ggx_radiance, smith_g1
+from freqbrdf.studies.recovery_capture import capture_observations, recovery_texels
 from freqbrdf.artefacts import Observations
 
 H, W = 64, 128
@@ -89,10 +90,10 @@ def test_point_term_is_the_microfacet_brdf_of_the_pixel(shadowing: bool) -> None
     light = np.zeros((problem.n_pairs, 9, 3))
     point = point_terms(problem, sources, shadowing)
     model = forward(pack_params(truth, n_tex), problem, light, KernelModel(True, point=point))
-    expected = oracles.ggx_radiance(env, capture, truth)
+    expected = ggx_radiance(env, capture, truth)
     if not shadowing:  # the oracle's G1(theta_i) divided out
         wi = capture["frame"] @ sources.directions[0]
-        expected = expected / oracles.smith_g1(wi[:, 2], truth["roughness"] ** 2)[:, None, None]
+        expected = expected / smith_g1(wi[:, 2], truth["roughness"] ** 2)[:, None, None]
     seen = capture["weight"] > 0
     assert expected[seen].max() > 1.0  # the highlight is in view
     np.testing.assert_allclose(model[seen], expected[seen], rtol=1e-9, atol=1e-12)
@@ -159,21 +160,18 @@ def test_point_sources_recover_the_metals_that_the_sun_through_the_sh_does_not()
     0.08): their diffuse term keeps the principled lobe's uniform-light view dependence, which
     under a point sun misses its retro-reflection.
     """
-    from test_light import oracle_capture
-
     d = sampling.equirect_directions(H, W)
     env = np.repeat(0.3 + 0.1 * d[..., 1:2], 3, axis=2)
     env[12, 50] = 60000.0  # the sun, about 30 degrees up, most of the map's power
-    capture, truth = oracle_capture(env, seed=5)
-    capture["radiance"] = np.where(capture["weight"][..., None] > 0, oracles.ggx_radiance(env, capture, truth), 0.0)
-    obs = Observations.from_arrays(*(capture[k] for k in ("radiance", "weight", "wo_local", "frame", "texel",
-                                                           "resolution")))
-    settings = OptimiseSettings(lobe="ggx", diffuse="principled", iterations=300, lr=0.01, tv_weight=0.0)
+    capture, truth = recovery_texels(seed=5)
+    capture["radiance"] = np.where(capture["weight"][..., None] > 0, ggx_radiance(env, capture, truth), 0.0)
+    obs = capture_observations(capture)
+    settings = OptimiseSettings.paper(lobe="ggx", diffuse="principled", iterations=300, lr=0.01, tv_weight=0.0)
     metal = truth["metallic"] == 1.0
     errors = {}
     for name, sources in (("sh", None), ("point", {"max_radius_deg": 3.0, "min_radiance": 20.0})):
         light, e = estimate_light(env, obs, "freq", 20, sources)
-        est, _ = optimise(obs, e, light, None, "freq", settings)
+        est, _ = optimise(obs, e, light, None, "freq", settings=settings)
         errors[name] = {g: np.abs(est[g] - truth[g])[metal].mean() for g in ("roughness", "metallic")}
     assert errors["point"]["metallic"] < 0.5 * errors["sh"]["metallic"]
     assert errors["point"]["roughness"] < 0.75 * errors["sh"]["roughness"]

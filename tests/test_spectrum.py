@@ -304,7 +304,7 @@ def test_fig4_cases_with_the_benchmark_environments() -> None:
     museum, K_s 0.1: 0.82 (0.87); museum, K_s 0.8: 0.15 (0.25), more certain than the paper's
     delta by 0.10; the overcast sky alone: 0.42, not 0.69: normalised by its total power it keeps
     a quarter of it at degree 1, where exp(-2 alpha^2) falls from 1 to 0.14 over the grid, which
-    sigma = 0.01 resolves (README "Entropy"). The paper's ordering holds for all four.
+    sigma = 0.01 resolves (docs/uncertainty.md). The paper's ordering holds for all four.
     """
     from freqbrdf.scene import envmaps
 

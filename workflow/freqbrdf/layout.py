@@ -9,7 +9,10 @@ A path template changes here, and nowhere else.
 
 from __future__ import annotations
 
-__all__ = ["RESULTS", "fill", "log", "benchmark"]
+import os
+from pathlib import Path
+
+__all__ = ["RESULTS", "fill", "located", "log", "benchmark"]
 
 RESULTS = "results"
 
@@ -82,6 +85,20 @@ def fill(template: str, **values: object) -> str:
     'results/estimates/{object}/{env}/{poses}/spectrum'
     """
     return template.format_map(_Wildcards(values))
+
+
+def located(template: str, root: str | os.PathLike | None = None, **values: object) -> Path:
+    """`fill` as a path, every field given, under ``root`` in place of ``results/`` when given
+    (a results tree elsewhere, e.g. another clone's, as the benches accept).
+
+    >>> str(located(ENVMAP, "/tmp/run/results", env="studio"))
+    '/tmp/run/results/envs/studio.exr'
+    """
+    path = fill(template, **values)
+    if "{" in path:
+        raise KeyError(f"{template}: a field is not given in {sorted(values)}")
+    relative = Path(path).relative_to(RESULTS)
+    return (Path(root) if root is not None else Path(RESULTS)) / relative
 
 
 def log(rule: str, job: str = "") -> str:

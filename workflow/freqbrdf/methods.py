@@ -7,7 +7,7 @@ all read this registry. An entry says which rule estimates the method, what
 its forward model includes, what it starts from, and which row of each of the
 paper's tables it stands beside (Wiersma et al. 2024, Tables 1, 2, 4, 5 and 6).
 
-Adding an estimator (README "Adding a method"): one entry here and, if no
+Adding an estimator (README "Adding a method", docs/modules.md): one entry here and, if no
 existing rule estimates it, one function and one rule.
 """
 

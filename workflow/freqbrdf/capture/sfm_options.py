@@ -24,7 +24,7 @@ class SfmOptions:
 
     The defaults are tuned on the default captures (24 views, 256 x 256,
     64 spp, sphere and torus with grained textures, studio and sunny light;
-    README "Poses"): more and affine-adapted SIFT features (lower
+    docs/captures.md, "Poses"): more and affine-adapted SIFT features (lower
     ``peak_threshold``, ``estimate_affine_shape``), a looser ratio test with
     tighter geometric thresholds (``max_ratio`` 0.9, ``two_view_max_error``
     and ``filter_max_reproj_error`` 1 px: at 2 px the median errors double),

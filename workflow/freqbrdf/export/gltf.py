@@ -1,7 +1,7 @@
 """SVBRDF textures on a mesh as binary glTF 2.0 (``.glb``): writing, and reading back.
 
 glTF's metallic-roughness material is the principled BSDF's parametrisation
-(README "glTF export" says what differs and how it is handled):
+(docs/export.md says what differs and how it is handled):
 
 * ``baseColorTexture`` holds the base colour **sRGB-encoded** in 8 bits (glTF
   decodes it to linear before shading); our EXR textures are linear.

@@ -7,7 +7,7 @@ both sharp edges and smooth blends, and low-frequency periodic noise varies
 colour and roughness inside a cell. A fine grain (band-limited noise a few
 texels across) modulates the base colour, as paint and print do on real
 objects; without it structure from motion finds too few distinctive features
-to register the views (README: "Poses"). All fields are periodic in u and v,
+to register the views (docs/captures.md, "Poses"). All fields are periodic in u and v,
 so seams of the sphere and torus atlases are invisible.
 
 Texel (i, j) of an (H, W) texture sits at uv = ((j + 0.5)/W, (i + 0.5)/H),

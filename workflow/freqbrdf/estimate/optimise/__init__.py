@@ -71,7 +71,7 @@ objective (``OptimiseSettings.solver``):
   absolute values are reweighted into least squares (IRLS), and a step is
   kept only if it lowers the texel's objective. On the tuning set it
   reaches a lower objective in 12 sweeps than Adam in 150 steps, but a
-  higher parameter error (README "Second-order solver").
+  higher parameter error (docs/estimator.md, "Second-order solver").
 
 Without shadowing the fitted light does not depend on alpha, so
 ``freq_noshadow`` and ``rh2001`` fit it once.

@@ -3,7 +3,7 @@ packed parameters, and the roughness its light's band limit can resolve."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping
 
 import numpy as np
@@ -31,7 +31,13 @@ def method_terms(method: str) -> tuple[bool, bool]:
 
 @dataclass(frozen=True)
 class OptimiseSettings:
-    """Settings of `optimise` (defaults: paper section 4.3 and the authors' code).
+    """Settings of `optimise`.
+
+    The fields the config's ``optimise`` block sets (``solver`` to
+    ``min_roughness``) have no defaults here: the pipeline's live in
+    ``config/config.yaml`` (`from_config` builds the settings from them), the
+    paper's in the preset `paper`. The implementation's own fields, which no
+    config sets (``sweep_tolerance`` on), keep their defaults.
 
     Attributes
     ----------
@@ -53,6 +59,22 @@ class OptimiseSettings:
         ``lm``: sweeps over both colours (one damped Gauss-Newton step per texel each).
     sweep_refit_every : int
         ``lm``: sweeps between refits of the shadowed light.
+    iterations : int
+        Adam steps (one full batch each).
+    grid_start : bool
+        Start each texel from the best point of a roughness x metallic grid
+        (`grid_start`) unless an explicit start is given.
+    lr : float
+        Adam learning rate.
+    refit_every : int
+        Iterations between refits of the shadowed light ``Lg`` (the first
+        fit is at iteration 0; methods without shadowing fit once).
+    tv_weight : float
+        Weight of the total variation of the parameter textures, ``>= 0``.
+    min_roughness : float
+        Lower bound of the fitted roughness, in [0, 1), e.g.
+        `identifiable_roughness` of the light's degree: below it the model
+        does not resolve the lobe (docs/method.md, "Identifiable roughness").
     sweep_tolerance : float
         ``lm``: stop once a sweep lowers the objective by less than this
         fraction (after the last refit).
@@ -61,32 +83,16 @@ class OptimiseSettings:
         to each texel's mean radiance) and of the TV differences.
     damping : float
         ``lm``: initial Marquardt damping of every texel.
-    iterations : int
-        Adam steps (one full batch each).
-    grid_start : bool
-        Start each texel from the best point of a roughness x metallic grid
-        (`grid_start`) unless an explicit start is given.
     grid_roughness, grid_metallic : int
         Grid points in [0, 1] of each.
-    lr : float
-        Adam learning rate.
     betas : tuple of float
         Adam decay rates of the first and second moment.
     eps : float
         Adam denominator offset.
-    refit_every : int
-        Iterations between refits of the shadowed light ``Lg`` (the first
-        fit is at iteration 0; methods without shadowing fit once).
     refit_tolerance : float
         A refit skips texels whose roughness moved less than this since
         their last fit (at roughness 0.5 and 80 degrees from the normal,
         ``G1`` changes by 3%).
-    tv_weight : float
-        Weight of the total variation of the parameter textures, ``>= 0``.
-    min_roughness : float
-        Lower bound of the fitted roughness, in [0, 1), e.g.
-        `identifiable_roughness` of the light's degree: below it the model
-        does not resolve the lobe (README "Identifiable roughness").
     workers : int
         Threads (texels run concurrently; results are identical
         for any number).
@@ -95,27 +101,27 @@ class OptimiseSettings:
         Adam moments are always float64; the loss is accumulated in float64).
     """
 
-    solver: str = "adam"
-    lobe: str = "gaussian"
-    view_weight: str = "paper"
-    diffuse: str = "lambert"
-    sweeps: int = 12
-    sweep_refit_every: int = 4
+    solver: str
+    lobe: str
+    view_weight: str
+    diffuse: str
+    sweeps: int
+    sweep_refit_every: int
+    iterations: int
+    grid_start: bool
+    lr: float
+    refit_every: int
+    tv_weight: float
+    min_roughness: float
     sweep_tolerance: float = 1e-4
     irls_floor: float = 1e-2
     tv_floor: float = 1e-2
     damping: float = 1e-2
-    iterations: int = 150
-    grid_start: bool = True
     grid_roughness: int = 21
     grid_metallic: int = 5
-    lr: float = 0.02
     betas: tuple[float, float] = (0.9, 0.999)
     eps: float = 1e-8
-    refit_every: int = 50
     refit_tolerance: float = 0.02
-    tv_weight: float = 1e-3
-    min_roughness: float = 0.0
     workers: int = 1
     dtype: str = "float32"
 
@@ -148,9 +154,37 @@ class OptimiseSettings:
             raise ValueError(f"min_roughness must be in [0, 1), got {self.min_roughness!r}")
 
     @classmethod
+    def paper(cls, **overrides: object) -> OptimiseSettings:
+        """The paper's estimator (section 4.3) and the authors' code, with ``overrides``.
+
+        From the paper: the Gaussian lobe ``exp(-(alpha l)^2)``, the specular
+        weight ``F(theta_o) G1(theta_o)`` per view, the Lambertian diffuse term,
+        TV weight 1e-3, no roughness bound. From the authors' code (METHOD.md
+        section 5): Adam, lr 0.02 (of 0.01-0.02), 150 iterations (of 100-200),
+        the shadowed light refitted every 50. This project's, not the paper's:
+        the grid start (the authors start from 0.5 or the spectrum search) and
+        the ``lm`` solver's ``sweeps`` 12 and ``sweep_refit_every`` 4, unused by
+        Adam. ``config/paper.yaml`` merged over ``config/config.yaml`` gives
+        the same (tested).
+
+        Parameters
+        ----------
+        **overrides
+            Fields to change (`dataclasses.replace`), e.g. ``iterations=300``.
+
+        Returns
+        -------
+        OptimiseSettings
+        """
+        preset = cls(solver="adam", lobe="gaussian", view_weight="paper", diffuse="lambert", sweeps=12,
+                     sweep_refit_every=4, iterations=150, grid_start=True, lr=0.02, refit_every=50,
+                     tv_weight=1e-3, min_roughness=0.0)
+        return replace(preset, **overrides)
+
+    @classmethod
     def from_config(cls, config: Mapping[str, object], workers: int = 1) -> OptimiseSettings:
-        """Settings from config ``optimise`` (``min_roughness: auto`` is `identifiable_roughness`
-        of ``lmax``; ``init: grid`` starts from the grid)."""
+        """Settings from config ``optimise``, the pipeline's (``min_roughness: auto`` is
+        `identifiable_roughness` of ``lmax``; ``init: grid`` starts from the grid)."""
         bound = config["min_roughness"]
         return cls(solver=config["solver"], lobe=config["lobe"], view_weight=config["view_weight"],
                    diffuse=config["diffuse"], sweeps=config["sweeps"],

@@ -66,7 +66,8 @@ def optimise(
     light: LightQuadrature,
     init: Mapping[str, np.ndarray] | None = None,
     method: str = "freq",
-    settings: OptimiseSettings = OptimiseSettings(),
+    *,
+    settings: OptimiseSettings,
 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Per-texel principled parameters minimising the L1 + TV objective (Adam or LM: ``settings.solver``).
 
@@ -86,7 +87,9 @@ def optimise(
     method : str
         A method of rule ``optimise_svbrdf`` in :data:`freqbrdf.methods.METHODS`.
     settings : OptimiseSettings
-        Solver and SH fit settings.
+        Solver and SH fit settings (keyword only, no default): the pipeline's
+        from its config (`OptimiseSettings.from_config`), the paper's from
+        `OptimiseSettings.paper`.
 
     Returns
     -------
