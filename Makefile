@@ -28,7 +28,7 @@ slurm-test: $(BIN)/.installed
 # Lint and format checks (settings in pyproject.toml at the root); any violation fails.
 lint: $(BIN)/.installed
 	$(BIN)/ruff check .
-	$(BIN)/snakefmt --check Snakefile rules
+	$(BIN)/snakefmt --config pyproject.toml --check workflow/Snakefile workflow/rules
 	$(BIN)/snakemake --lint
 
 # Speed, memory and accuracy measurements (bench/out/*.tsv); run on an idle machine.

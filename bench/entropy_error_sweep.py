@@ -1,12 +1,14 @@
 """Pearson correlation of the spectrum entropy with ``freq``'s per-texel error, per entropy setting.
 
-For each capture, the pipeline's SH fit (``results/sh``) is searched again
+For each capture, the pipeline's SH fit (`freqbrdf.layout.SH_FIT`) is searched again
 with every combination of `spectrum.normalise` (``light``, ``reference``),
 `spectrum.combine` (``min``, ``luminance``) and a range of `spectrum.sigma`,
 and each entropy is correlated (Pearson, over the observed texels) with the
-squared parameter error of the run's ``freq`` estimate: the criterion that
-chose `spectrum.sigma`. Choose on the tuning set (config/tuning.yaml); on
-the reported captures it only shows how far the criterion moves.
+squared parameter error of the run's ``freq`` estimate (`freqbrdf.layout.ESTIMATE`):
+the criterion that chose `spectrum.sigma`. Choose on the tuning set
+(config/tuning.yaml); on the reported captures it only shows how far the
+criterion moves. The results directory is the repository's
+(`freqbrdf.layout.RESULTS`), or ``FREQBRDF_RESULTS``'s.
 
     FREQBRDF_RESULTS=<tuning clone>/results python bench/entropy_error_sweep.py \\
         --captures die/museum die/overcast vase/museum vase/overcast
@@ -23,13 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
+from freqbrdf import layout
 from freqbrdf.artefacts import read_observations, read_sh_fit, read_svbrdf
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.report.metrics import parameter_error_map, pearson
 from freqbrdf.estimate.spectrum import default_grid, residual_width, spectrum_search
 
 REPO = Path(__file__).resolve().parents[1]
-RESULTS = Path(os.environ.get("FREQBRDF_RESULTS", REPO / "results"))
+RESULTS = Path(os.environ.get("FREQBRDF_RESULTS", REPO / layout.RESULTS))
 SETTINGS = [(sigma, combine, "light") for sigma in (0.001, 0.003, 0.01, 0.03) for combine in ("min", "luminance")]
 SETTINGS += [(sigma, combine, "reference") for sigma in (1e-5, 1e-4, 1e-3, 1e-2) for combine in ("min", "luminance")]
 
@@ -37,10 +40,11 @@ SETTINGS += [(sigma, combine, "reference") for sigma in (1e-5, 1e-4, 1e-3, 1e-2)
 def correlations(capture: str) -> list[float]:
     """Pearson(entropy, freq's squared parameter error) of one capture, per entry of SETTINGS."""
     obj, env = capture.split("/")
-    fit = read_sh_fit(RESULTS / "sh" / obj / env / "gt")
-    obs = read_observations(RESULTS / "observations" / obj / env / "gt")
-    truth = read_svbrdf({n: RESULTS / "objects" / obj / f"{n}.exr" for n in TEXTURES})
-    estimate = read_svbrdf(RESULTS / "estimates" / obj / env / "gt" / "freq")
+    capture_fields = {"object": obj, "env": env, "poses": "gt"}
+    fit = read_sh_fit(layout.located(layout.SH_FIT, RESULTS, **capture_fields))
+    obs = read_observations(layout.located(layout.OBSERVATIONS, RESULTS, **capture_fields))
+    truth = read_svbrdf({n: layout.located(layout.OBJECT_TEXTURE, RESULTS, object=obj, texture=n) for n in TEXTURES})
+    estimate = read_svbrdf(layout.located(layout.ESTIMATE, RESULTS, **capture_fields, method="freq"))
     seen = obs.observed
     error = parameter_error_map(dict(truth), dict(estimate)).ravel()[obs.texels.texel][seen]
     ks, alpha = default_grid(8, 8, alpha_min=fit.a_prime)

@@ -1,12 +1,14 @@
 """The ground truth's .glb rendered back with Mitsuba from a training view, against the capture.
 
-    python bench/gltf_roundtrip.py --results results --object sphere --env studio [--view 000]
+    python bench/gltf_roundtrip.py [--results DIR] --object sphere --env studio [--view 000]
 
-Reads ``results/gltf/{object}/truth.glb`` (mesh and textures, as any glTF
-reader would: base colour sRGB-decoded, roughness from G, metallic from B),
-renders it as rule ``render_capture`` rendered the training view (same
-settings from the config, same seed, so the Monte Carlo noise is the same
-and cancels), and compares with ``results/captures/{object}/{env}/train``.
+Reads, under the results directory (``--results``, default the working
+directory's, `freqbrdf.layout.RESULTS`), the ground truth's .glb
+(`freqbrdf.layout.TRUTH_GLTF`: mesh and textures, as any glTF reader would:
+base colour sRGB-decoded, roughness from G, metallic from B), renders it as
+rule ``render_capture`` rendered the training view (same settings from the
+config, same seed, so the Monte Carlo noise is the same and cancels), and
+compares with the training capture (`freqbrdf.layout.CAPTURE`, split ``train``).
 Only the first view has the capture's own seed (view k mixes k into it), so
 views other than 000 are rendered with theirs as render_views does.
 
@@ -26,6 +28,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from freqbrdf import layout
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -36,11 +40,11 @@ def psnr(a: np.ndarray, b: np.ndarray, peak: float) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--results", type=Path, default=Path("results"))
+    parser.add_argument("--results", type=Path, default=Path(layout.RESULTS), help="the results directory")
     parser.add_argument("--object", default="sphere")
     parser.add_argument("--env", default="studio")
     parser.add_argument("--view", default="000")
-    parser.add_argument("--glb", type=Path, help="default: RESULTS/gltf/OBJECT/truth.glb")
+    parser.add_argument("--glb", type=Path, help="default: the ground truth's under --results (layout.TRUTH_GLTF)")
     parser.add_argument("--configfile", type=Path, action="append", default=[],
                         help="config layered on config/config.yaml, as given to snakemake")
     args = parser.parse_args(argv)
@@ -53,13 +57,14 @@ def main(argv: list[str] | None = None) -> int:
     from freqbrdf.scene.ply import write_ply
     from freqbrdf.util.mitsuba_setup import setup_mitsuba
     from freqbrdf.scene.render import relit_views
+    from freqbrdf.sphere.brdf import TEXTURES
 
     config = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
     for extra in args.configfile:
         for key, value in (yaml.safe_load(extra.read_text()) or {}).items():
             config[key] = {**config[key], **value} if isinstance(value, dict) and isinstance(config.get(key), dict) else value
     render = config["render"]
-    capture = args.results / "captures" / args.object / args.env / "train"
+    capture = layout.located(layout.CAPTURE, args.results, object=args.object, env=args.env, split="train")
     all_cameras = cameras_from_json(read_json(capture / "cameras.json"), capture / "cameras.json")
     k = all_cameras.names.index(args.view)
     cameras = Cameras(K=all_cameras.K[k : k + 1], world_to_camera=all_cameras.world_to_camera[k : k + 1],
@@ -67,17 +72,18 @@ def main(argv: list[str] | None = None) -> int:
     seed = (derived_seed(config["seed"], "render", args.object, args.env, "train") + k * 0x9E3779B1) & 0xFFFFFFFF
     reference = read_exr(capture / "images" / f"{args.view}.exr")
     coverage = read_png(capture / "masks" / f"{args.view}.png") / 255.0
-    envmap = read_exr(args.results / "envs" / f"{args.env}.exr")
-    scene = read_glb(args.glb or args.results / "gltf" / args.object / "truth.glb")
+    envmap = read_exr(layout.located(layout.ENVMAP, args.results, env=args.env))
+    scene = read_glb(args.glb or layout.located(layout.TRUTH_GLTF, args.results, object=args.object))
 
     mi = setup_mitsuba("llvm_ad_rgb")
     settings = dict(fov_x_deg=render["fov_deg"], spp=render["spp"], max_depth=render["max_depth"], seed=seed)
     with tempfile.TemporaryDirectory() as tmp:
         write_ply(Path(tmp) / "mesh.ply", scene.mesh)
-        from_glb = next(relit_views(mi, Path(tmp) / "mesh.ply", scene.material("truth").textures(), envmap, cameras,
-                                    **settings))
-    exr = read_svbrdf(args.results / "objects" / args.object)
-    from_exr = next(relit_views(mi, args.results / "objects" / args.object / "mesh.ply",
+        from_glb = next(relit_views(mi, Path(tmp) / "mesh.ply", scene.material(layout.TRUTH).textures(), envmap,
+                                    cameras, **settings))
+    exr = read_svbrdf({n: layout.located(layout.OBJECT_TEXTURE, args.results, object=args.object, texture=n)
+                       for n in TEXTURES})
+    from_exr = next(relit_views(mi, layout.located(layout.OBJECT_MESH, args.results, object=args.object),
                                 {n: getattr(exr, n) for n in ("base_color", "roughness", "metallic")}, envmap,
                                 cameras, **settings))
     peak = float(reference.max())

@@ -6,7 +6,7 @@ identifiable roughness at l* = 20), a sample of the class's observed texels
 is predicted at the *true* parameters two ways and compared with the
 observations that `freq` fits:
 
-- the brute-force oracle (`oracles.ggx_radiance`: Mitsuba's principled BSDF
+- the brute-force oracle (`freqbrdf.sphere.reference.ggx_radiance`: Mitsuba's principled BSDF
   without its extras, integrated over every pixel of the environment map):
   what the renderer's noise and the observation extraction leave;
 - `freq`'s own model (`optimise.forward`, the config's lobe, weight per view,
@@ -15,11 +15,13 @@ observations that `freq` fits:
 
 Error is the weighted L1 distance over the sample's observations relative to
 the observations' weighted L1 norm. Beside them: the class's share of the
-observed texels, its mean entropy (``results/entropy``) and `freq`'s mean
-per-texel squared parameter error (``results/estimates/.../freq``, the
-pipeline's run). A class whose entropy is low but whose model error at the
-truth is far above the oracle's is one the entropy cannot flag: the spectra
-constrain its lobe, the model cannot reproduce it.
+observed texels, its mean entropy (`freqbrdf.layout.ENTROPY`) and `freq`'s
+mean per-texel squared parameter error (its estimate,
+`freqbrdf.layout.ESTIMATE`: the pipeline's run). A class whose entropy is
+low but whose model error at the truth is far above the oracle's is one the
+entropy cannot flag: the spectra constrain its lobe, the model cannot
+reproduce it. Every input (gt poses) is read from the repository's results
+directory (`freqbrdf.layout.RESULTS`), or ``FREQBRDF_RESULTS``.
 
     python bench/model_error.py                                   # the default run's captures
     FREQBRDF_RESULTS=/path/to/results python bench/model_error.py --captures sphere/sunny --lmax 20 36
@@ -31,29 +33,26 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from freqbrdf import layout
+from freqbrdf.estimate.optimise.kernels import KernelModel
+from freqbrdf.estimate.optimise.model import forward, light_terms, model_light, model_tables, point_terms
+from freqbrdf.estimate.optimise.problem import build_problem, pack_params
+from freqbrdf.estimate.optimise.settings import OptimiseSettings
+from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
+from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.sphere.reference import ggx_radiance
+from freqbrdf.util.io import read_exr
+from freqbrdf.estimate.light import irradiance
+from freqbrdf.report.metrics import parameter_error_map, pearson
+
 REPO = Path(__file__).resolve().parents[1]
-RESULTS = Path(os.environ.get("FREQBRDF_RESULTS", REPO / "results"))
+RESULTS = Path(os.environ.get("FREQBRDF_RESULTS", REPO / layout.RESULTS))
 OUT = REPO / "bench" / "out"
-sys.path.insert(0, str(REPO / "tests"))  # the brute-force GGX oracle
-
-import oracles  # noqa: E402
-
-from freqbrdf.estimate.optimise.kernels import KernelModel  # noqa: E402
-from freqbrdf.estimate.optimise.model import forward, light_terms, model_light, model_tables, point_terms  # noqa: E402
-from freqbrdf.estimate.optimise.problem import build_problem, pack_params  # noqa: E402
-from freqbrdf.estimate.optimise.settings import OptimiseSettings  # noqa: E402
-from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf  # noqa: E402
-from freqbrdf.sphere.brdf import TEXTURES  # noqa: E402
-from freqbrdf.util.io import read_exr  # noqa: E402
-from freqbrdf.estimate.light import irradiance  # noqa: E402
-from freqbrdf.report.metrics import parameter_error_map, pearson  # noqa: E402
-
 CAPTURES = ("sphere/studio", "sphere/sunny", "torus/studio", "torus/sunny")
 ROUGHNESS_EDGES = (0.0, 0.2, 0.356, 0.6, 1.01)
 
@@ -72,14 +71,16 @@ def relative_l1(prediction: np.ndarray, observed: np.ndarray, weight: np.ndarray
 def capture_rows(capture: str, settings: OptimiseSettings, lmaxes: list[int], point_sources: dict | None,
                  sample: int, rng: np.random.Generator) -> list[dict]:
     obj, env = capture.split("/")
-    obs = read_observations(RESULTS / "observations" / obj / env / "gt")
+    fields = {"object": obj, "env": env, "poses": "gt"}
+    obs = read_observations(layout.located(layout.OBSERVATIONS, RESULTS, **fields))
     texel, seen = obs.texels.texel, obs.observed
-    truth_maps = read_svbrdf({n: RESULTS / "objects" / obj / f"{n}.exr" for n in TEXTURES})
+    truth_maps = read_svbrdf({n: layout.located(layout.OBJECT_TEXTURE, RESULTS, object=obj, texture=n)
+                              for n in TEXTURES})
     truth = {n: flat(getattr(truth_maps, n), texel) for n in TEXTURES}
-    estimate = read_svbrdf(RESULTS / "estimates" / obj / env / "gt" / "freq")
+    estimate = read_svbrdf(layout.located(layout.ESTIMATE, RESULTS, **fields, method="freq"))
     error = flat(parameter_error_map(dict(truth_maps), dict(estimate)), texel)
-    entropy = flat(read_entropy(RESULTS / "entropy" / obj / env / "gt").atlas, texel)
-    envmap = read_exr(RESULTS / "envs" / f"{env}.exr")
+    entropy = flat(read_entropy(layout.located(layout.ENTROPY, RESULTS, **fields)).atlas, texel)
+    envmap = read_exr(layout.located(layout.ENVMAP, RESULTS, env=env))
     problem = build_problem(obs, irradiance(envmap, obs.texels.normal), "float64")
     x = pack_params(truth, problem.n_texels)
     models = {}
@@ -99,8 +100,8 @@ def capture_rows(capture: str, settings: OptimiseSettings, lmaxes: list[int], po
             if members.size < sample:
                 continue
             pick = np.sort(rng.choice(members, sample, replace=False))
-            oracle = oracles.ggx_radiance(envmap, {"frame": frame[pick], "wo_local": obs.wo_local[pick],
-                                                   "weight": obs.weight[pick]}, {n: v[pick] for n, v in truth.items()})
+            oracle = ggx_radiance(envmap, {"frame": frame[pick], "wo_local": obs.wo_local[pick],
+                                           "weight": obs.weight[pick]}, {n: v[pick] for n, v in truth.items()})
             row = {"capture": capture, "class": f"{'metal' if is_metal else 'dielectric'} r [{lo:g}, {min(hi, 1):g})",
                    "share": round(members.size / seen.sum(), 3), "entropy": round(float(entropy[members].mean()), 3),
                    "freq_error": round(float(error[members].mean()), 4), "pearson_entropy_error": "",

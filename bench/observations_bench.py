@@ -20,6 +20,8 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
+from freqbrdf import layout
+
 REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / "bench" / "out"
 CASES = {
@@ -45,11 +47,11 @@ def main() -> None:
         workdir.mkdir(parents=True, exist_ok=True)
         config = workdir / "config.yaml"
         config.write_text(yaml.safe_dump(merged(case)))
-        targets = [f"results/observations/{o}/studio/gt" for o in COMMON["objects"]]
-        subprocess.run([sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(workdir),
+        targets = [layout.fill(layout.OBSERVATIONS, object=o, env="studio", poses="gt") for o in COMMON["objects"]]
+        subprocess.run([sys.executable, "-m", "snakemake", "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(workdir),
                         "--cores", "2", *targets, "--configfile", str(config)], check=True)
         for obj in COMMON["objects"]:
-            bench = pd.read_csv(workdir / f"results/benchmarks/extract_observations/{obj}_studio_gt.tsv", sep="\t")
+            bench = pd.read_csv(workdir / layout.benchmark("extract_observations", f"{obj}_studio_gt"), sep="\t")
             rows.append({"case": name, "object": obj, "seconds": bench["s"].iloc[-1],
                          "peak_rss_mb": bench["max_rss"].iloc[-1]})
     table = pd.DataFrame(rows)

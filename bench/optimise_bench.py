@@ -1,19 +1,25 @@
 """Time, peak memory and accuracy of the gradient-descent estimator (freqbrdf.estimate.optimise).
 
-Timing cases (each in a fresh Python process, so its peak RSS is its own):
-`optimise` on 256x256 texels x 24 views, 150 Adam iterations, the light at degree
-20 (config ``optimise.lmax``), grid start, for ``freq`` (four fits of the
-shadowed light: the grid start's, the first step's and two partial refits)
-and ``rh2001`` (one evaluation), with 2 and 1 threads, and ``freq`` by the
-``lm`` solver (12 sweeps, refits every 4). Issue 14's target:
-``freq`` in at most 1 s on 2 cores.
-Inputs are the real observations of ``results/observations/sphere/studio/gt``
-when they exist (read-only), else synthetic ones of the same shape.
+Timing cases (each in a fresh Python process, so its peak RSS is its own),
+named ``method[:changes]@threads`` (``freq@2threads``, ``freq:ggx@2threads``:
+a method of the pipeline, what changes from the paper's settings, the
+threads; no case name is a method's): `optimise` on 256x256 texels x 24
+views with the paper's settings (`OptimiseSettings.paper`: 150 Adam
+iterations, Gaussian lobe, Lambertian diffuse term, grid start), the light at
+degree 20 (config ``optimise.lmax``), for ``freq`` (four fits of the shadowed
+light: the grid start's, the first step's and two partial refits) and
+``rh2001`` (one evaluation) with 2 and 1 threads, ``freq`` with the GGX lobe,
+with it and the principled diffuse term, and by the ``lm`` solver (12 sweeps,
+refits every 4). Issue 14's target: ``freq`` in at most 1 s on 2 cores.
+Inputs are the real observations of sphere/studio (`freqbrdf.layout.OBSERVATIONS`,
+gt poses) when they exist (read-only), else synthetic ones of the same shape.
+Every input is read from the repository's results directory
+(`freqbrdf.layout.RESULTS`), or ``FREQBRDF_RESULTS``.
 
 Accuracy (needs the pipeline's results): parameter MSE against the
-ground-truth textures over observed texels, for every method started from
-the grid (the default), from 0.5 and from the spectrum-only estimate, next to
-the spectrum-only estimate itself.
+ground-truth textures (`freqbrdf.layout.OBJECT_TEXTURE`) over observed texels, for every method with the
+paper's settings started from the grid (the preset's start), from 0.5 and
+from the spectrum-only estimate, next to the spectrum-only estimate itself.
 
 Sweep (``--sweep``): parameter MSE of ``freq`` for each setting of
 `SWEEP` (the solvers included) on the given captures; run on the tuning set (config/tuning.yaml,
@@ -47,27 +53,27 @@ from pathlib import Path
 
 import numpy as np
 
+from freqbrdf import layout
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.methods import METHODS
 
 REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / "bench" / "out"
-RESULTS = Path(os.environ.get("FREQBRDF_RESULTS", REPO / "results"))  # e.g. a clone that ran the tuning preset
+RESULTS = Path(os.environ.get("FREQBRDF_RESULTS", REPO / layout.RESULTS))  # e.g. a clone that ran the tuning preset
 TIMING_CAPTURE = "sphere/studio"
 TIMING_CASES = {
-    # name: (method, workers, OptimiseSettings overrides)
-    "freq_w2": ("freq", 2, {}),
-    "freq_ggx_w2": ("freq", 2, {"lobe": "ggx"}),
-    "freq_ggx_principled_w2": ("freq", 2, {"lobe": "ggx", "diffuse": "principled"}),
-    "freq_lm_w2": ("freq", 2, {"solver": "lm"}),
-    "rh2001_w2": ("rh2001", 2, {}),
-    "freq_w1": ("freq", 1, {}),
+    # name (method[:changes]@threads, not a method's name): (method, workers, OptimiseSettings.paper overrides)
+    "freq@2threads": ("freq", 2, {}),
+    "freq:ggx@2threads": ("freq", 2, {"lobe": "ggx"}),
+    "freq:ggx,principled@2threads": ("freq", 2, {"lobe": "ggx", "diffuse": "principled"}),
+    "freq:lm@2threads": ("freq", 2, {"solver": "lm"}),
+    "rh2001@2threads": ("rh2001", 2, {}),
+    "freq@1thread": ("freq", 1, {}),
 }
 ACCURACY_METHODS = tuple(m for m, entry in METHODS.items() if "table4" in entry.paper_rows)  # the ablation
 LMAX = 20
-# label: OptimiseSettings overrides of a sweep run on DEFAULTS, the paper's lr and TV weight (config/config.yaml
-# itself has lr 0.05, tv 0.03: the row "lr 0.05, tv 0.03")
-DEFAULTS = {"iterations": 150, "lr": 0.02, "tv_weight": 1e-3, "refit_every": 50}
+# label: overrides of the paper's settings (OptimiseSettings.paper: lr 0.02, TV weight 1e-3, 150 iterations,
+# refits every 50) in a sweep run (config/config.yaml itself has lr 0.05, tv 0.03: the row "lr 0.05, tv 0.03")
 SWEEP = {
     "default": {},
     "lr 0.01": {"lr": 0.01},
@@ -113,14 +119,14 @@ def load_capture(capture: str) -> dict | None:
     from freqbrdf.estimate.light import irradiance
 
     obj, env = capture.split("/")
-    directory = RESULTS / "observations" / obj / env / "gt"
-    envmap = RESULTS / "envs" / f"{env}.exr"
+    directory = layout.located(layout.OBSERVATIONS, RESULTS, object=obj, env=env, poses="gt")
+    envmap = layout.located(layout.ENVMAP, RESULTS, env=env)
     if not ((directory / "views.json").is_file() and envmap.is_file()):
         return None
     obs = read_observations(directory)
     data = {"obs": obs, "weight": obs.weight, "texel": obs.texels.texel, "envmap": read_exr(envmap)}
     data["irradiance"] = irradiance(data["envmap"], obs.texels.normal)
-    data["source"] = f"results/observations/{capture}/gt"
+    data["source"] = layout.fill(layout.OBSERVATIONS, object=obj, env=env, poses="gt")
     return data
 
 
@@ -164,13 +170,14 @@ def synthetic_capture(n_side: int = 256, n_views: int = 24, seed: int = 0) -> di
 
 def optimise_capture(data: dict, method: str, init: dict | None, lmax: int = LMAX, point_sources: dict | None = None,
                      **settings) -> tuple[dict, np.ndarray]:
-    """`optimise` on a loaded capture, its light as the rule builds it (`model_light`)."""
+    """`optimise` on a loaded capture with the paper's settings changed by ``settings``, its light as
+    the rule builds it (`model_light`)."""
     from freqbrdf.estimate.optimise.model import model_light
     from freqbrdf.estimate.optimise.settings import OptimiseSettings
     from freqbrdf.estimate.optimise.solve import optimise
 
     light = model_light(data["envmap"], data["obs"], method, lmax, point_sources)
-    return optimise(data["obs"], data["irradiance"], light, init, method, OptimiseSettings(**settings))
+    return optimise(data["obs"], data["irradiance"], light, init, method, settings=OptimiseSettings.paper(**settings))
 
 
 def run_timing(name: str) -> dict:
@@ -205,13 +212,26 @@ def run_timing(name: str) -> dict:
     }
 
 
-def read_textures(directory: Path) -> dict[str, np.ndarray] | None:
-    """``base_color`` (R*R, 3), ``roughness``, ``metallic`` (R*R,) of a texture directory, flat ``i * R + j``."""
+def truth_textures(obj: str) -> dict[str, Path]:
+    """The ground truth's texture files of ``obj``."""
+    return {g: layout.located(layout.OBJECT_TEXTURE, RESULTS, object=obj, texture=g) for g in TEXTURES}
+
+
+def estimate_textures(capture: str, method: str) -> dict[str, Path]:
+    """The texture files of ``method``'s estimate of ``object/env`` (gt poses)."""
+    obj, env = capture.split("/")
+    directory = layout.located(layout.ESTIMATE, RESULTS, object=obj, env=env, poses="gt", method=method)
+    return {g: directory / f"{g}.exr" for g in TEXTURES}
+
+
+def read_textures(paths: dict[str, Path]) -> dict[str, np.ndarray] | None:
+    """``base_color`` (R*R, 3), ``roughness``, ``metallic`` (R*R,) of texture files, flat ``i * R + j``
+    (None when one is missing)."""
     from freqbrdf.artefacts import read_svbrdf
 
-    if not all((directory / f"{g}.exr").is_file() for g in TEXTURES):
+    if not all(paths[g].is_file() for g in TEXTURES):
         return None
-    svbrdf = read_svbrdf(directory)
+    svbrdf = read_svbrdf(paths)
     return {g: v.astype(np.float64) for g, v in svbrdf.at_texels(np.arange(svbrdf.resolution**2)).items()}
 
 
@@ -228,8 +248,7 @@ def mse_row(label: str, capture: str, est: dict, truth: dict, observed: np.ndarr
 def run_accuracy(capture: str) -> list[dict]:
     """MSE of every method (init 0.5 and init spectrum) and of the spectrum-only estimate."""
     data = load_capture(capture)
-    obj, env = capture.split("/")
-    gt = read_textures(RESULTS / "objects" / obj)
+    gt = read_textures(truth_textures(capture.split("/")[0]))
     if data is None or gt is None:
         print(f"{capture}: observations or ground truth missing, accuracy skipped")
         return []
@@ -237,7 +256,7 @@ def run_accuracy(capture: str) -> list[dict]:
     observed = (data["weight"] > 0).any(axis=1)
     truth = {g: v[texel] for g, v in gt.items()}
     rows = []
-    spectrum = read_textures(RESULTS / "estimates" / obj / env / "gt" / "spectrum")
+    spectrum = read_textures(estimate_textures(capture, "spectrum"))
     inits: dict[str, dict | None] = {"grid": None, "0.5": "constant"}
     if spectrum is not None:
         spectrum = {g: np.clip(v[texel], 0.0, 1.0) for g, v in spectrum.items()}
@@ -260,7 +279,7 @@ def run_sweep(captures: list[str], labels: list[str] | None = None) -> list[dict
     loaded = {}
     for capture in captures:
         obj = capture.split("/")[0]
-        data, gt = load_capture(capture), read_textures(RESULTS / "objects" / obj)
+        data, gt = load_capture(capture), read_textures(truth_textures(obj))
         if data is None or gt is None:
             raise SystemExit(f"{capture}: observations or ground truth missing; run the tuning preset first")
         loaded[capture] = (data, {g: v[data["texel"]] for g, v in gt.items()}, (data["weight"] > 0).any(axis=1))
@@ -270,7 +289,7 @@ def run_sweep(captures: list[str], labels: list[str] | None = None) -> list[dict
         per_capture = []
         for capture, (data, truth, observed) in loaded.items():
             start = time.perf_counter()
-            est, _ = optimise_capture(data, "freq", None, workers=2, **(DEFAULTS | overrides))
+            est, _ = optimise_capture(data, "freq", None, workers=2, **overrides)
             per_capture.append(mse_row(label, capture, est, truth, observed, round(time.perf_counter() - start, 2)))
             print(per_capture[-1], flush=True)
         mean = {g: round(float(np.mean([r[g] for r in per_capture])), 4) for g in (*TEXTURES, "mean")}

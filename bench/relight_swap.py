@@ -7,7 +7,11 @@ truth with its roughness raised to ``--min-roughness`` (what an estimator
 bounded below at that value could reach at best). Scores are the metrics
 rule's (PSNR-H, PSNR-L, SSIM, MSE over the fully covered pixels).
 
-Needs a finished default run in the working directory (``results/``):
+Needs a finished default run in the working directory (its results
+directory, `freqbrdf.layout.RESULTS`): the ground truth
+(`freqbrdf.layout.OBJECT_TEXTURE`, `freqbrdf.layout.OBJECT_MESH`), the
+estimate (`freqbrdf.layout.ESTIMATE`), the test captures
+(`freqbrdf.layout.CAPTURE`) and environment maps (`freqbrdf.layout.ENVMAP`):
 
     python bench/relight_swap.py                                  # sphere/studio, freq
     python bench/relight_swap.py --capture torus/sunny --method mitsuba
@@ -24,6 +28,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from freqbrdf import layout
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.config import derived_seed
 from freqbrdf.artefacts import read_svbrdf
@@ -55,22 +60,21 @@ def main() -> None:
     obj, env = args.capture.split("/")
     config = yaml.safe_load(Path(args.config).read_text())
     render = config["render"]
-    results = Path("results")
-    truth = read_svbrdf(results / "objects" / obj)
-    estimate = read_svbrdf(results / "estimates" / obj / env / args.poses / args.method)
+    truth = read_svbrdf({n: layout.located(layout.OBJECT_TEXTURE, object=obj, texture=n) for n in TEXTURES})
+    estimate = read_svbrdf(layout.located(layout.ESTIMATE, object=obj, env=env, poses=args.poses, method=args.method))
     mi = setup_mitsuba(threads=args.threads)
 
     rows = []
     for relight_env in [name for name in config["envs"] if name != env]:
-        test = results / "captures" / obj / relight_env / "test"
+        test = layout.located(layout.CAPTURE, object=obj, env=relight_env, split="test")
         cameras = cameras_from_json(read_json(test / "cameras.json"), test / "cameras.json")
         references, coverage, _ = read_views(test, cameras.names, cameras.width, cameras.height)
         # as the metrics rule scores them (the tolerance absorbs the masks' PNG quantisation)
         masks = [c >= config["evaluate"]["mask_min_coverage"] - 1e-6 for c in coverage]
         seed = derived_seed(config["seed"], "render", obj, relight_env, "test")  # rules/relight.smk's
-        envmap = read_exr(results / "envs" / f"{relight_env}.exr")
+        envmap = read_exr(layout.located(layout.ENVMAP, env=relight_env))
         for name, textures in variants(truth, estimate, args.min_roughness).items():
-            relit = list(relit_views(mi, results / "objects" / obj / "mesh.ply", textures, envmap, cameras,
+            relit = list(relit_views(mi, layout.located(layout.OBJECT_MESH, object=obj), textures, envmap, cameras,
                                      fov_x_deg=render["fov_deg"], spp=render["spp"], max_depth=render["max_depth"],
                                      seed=seed))
             scores = relight_scores(relit, list(references), masks, clip=config["evaluate"]["hdr_clip"],

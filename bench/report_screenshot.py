@@ -1,6 +1,10 @@
 """Screenshots of the Snakemake report with headless Chromium, to see that it shows the tables and figures.
 
-    python bench/report_screenshot.py results/report.html --out results/report_screenshots
+    python bench/report_screenshot.py [REPORT] [--out DIR]
+
+REPORT defaults to the report in the results directory (``report.html`` in
+`freqbrdf.layout.RESULTS`, as ``make report`` writes it), DIR to
+``report_screenshots`` beside it.
 
 The report is a single-page React app whose first view is the workflow
 description; the tables and figures open on click. For each view below this
@@ -14,9 +18,9 @@ with the text the window shows beside it (``{view}.txt``, the page's
 
 - ``workflow.png``: the landing page (the run's summary: what was run, the
   claims with their verdicts, the headline numbers; then the rule graph);
-- ``tables.png``: results/tables/tables.html (the paper's Tables 1, 2, 4, 5);
-- ``claims.png``: results/tables/claims.html;
-- ``maps.png``, ``relight.png``: the first capture's figures.
+- ``tables.png``: the table ``tables.html`` (`freqbrdf.layout.TABLE`; the paper's Tables 1, 2, 4, 5);
+- ``claims.png``: the table ``claims.html``;
+- ``maps.png``, ``relight.png``: the first capture's figures (`freqbrdf.layout.CAPTURE_FIGURE`).
 
 Chromium comes from Debian's ``chromium`` package (``make report-deps``). Exit
 status 2 means no Chromium was found.
@@ -32,6 +36,12 @@ import tempfile
 from pathlib import Path
 
 from devtools import DevTools
+
+from freqbrdf import layout
+
+# The report and its screenshots, in the results directory (no layout template of their own yet).
+REPORT = layout.located(layout.REPORT)
+SCREENSHOTS = layout.located(layout.REPORT_SCREENSHOTS)
 
 # Names a Chromium build goes by on Debian, Ubuntu and in Google's packages.
 CHROMIUM_NAMES = ("chromium", "chromium-browser", "chromium-headless-shell", "google-chrome", "google-chrome-stable")
@@ -60,8 +70,8 @@ document.addEventListener("load", function (e) {
 # View name -> (suffix of the result path to open, window size). None: the landing page.
 VIEWS: dict[str, tuple[str | None, tuple[int, int]]] = {
     "workflow": (None, (1600, 1000)),
-    "tables": ("results/tables/tables.html", (1800, 1500)),
-    "claims": ("results/tables/claims.html", (1800, 1000)),
+    "tables": (layout.fill(layout.TABLE, name="tables.html"), (1800, 1500)),
+    "claims": (layout.fill(layout.TABLE, name="claims.html"), (1800, 1000)),
     "maps": ("/maps.png", (1600, 1900)),
     "relight": ("/relight.png", (1800, 1100)),
 }
@@ -140,8 +150,9 @@ def screenshot(chromium: str, page: Path, out: Path, size: tuple[int, int], suff
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("report", type=Path, help="self-contained report (snakemake --report X.html)")
-    parser.add_argument("--out", type=Path, default=Path("results/report_screenshots"), help="output directory")
+    parser.add_argument("report", type=Path, nargs="?", default=REPORT,
+                        help=f"self-contained report (snakemake --report X.html; default {REPORT})")
+    parser.add_argument("--out", type=Path, default=SCREENSHOTS, help=f"output directory (default {SCREENSHOTS})")
     parser.add_argument("--views", nargs="+", choices=list(VIEWS), default=list(VIEWS))
     parser.add_argument("--chromium", help="Chromium executable (default: found on PATH)")
     args = parser.parse_args(argv)

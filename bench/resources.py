@@ -1,4 +1,4 @@
-"""Declared scheduler resources against what a finished run's jobs used (issue 18; README "Running on a cluster").
+"""Declared scheduler resources against what a finished run's jobs used (issue 18; docs/cluster.md).
 
 Every rule declares ``mem_mb`` and ``runtime`` (minutes), scaled from the
 default config's measurements by `freqbrdf.config.size_factor`
@@ -77,7 +77,7 @@ def dry_run(directory: Path, snakefile: Path, configfiles: list[str]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--directory", type=Path, default=Path("."), help="the run's working directory")
-    parser.add_argument("--snakefile", type=Path, default=Path(__file__).resolve().parents[1] / "Snakefile")
+    parser.add_argument("--snakefile", type=Path, default=Path(__file__).resolve().parents[1] / "workflow" / "Snakefile")
     parser.add_argument("--configfile", nargs="*", default=[])
     args = parser.parse_args()
     jobs = measured(args.directory, declared_resources(dry_run(args.directory, args.snakefile, args.configfile)))

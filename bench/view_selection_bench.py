@@ -1,9 +1,11 @@
 """Time of the entropy-guided view ranking (freqbrdf.studies.view_selection) on a real capture.
 
-Cases, on the observations of ``RESULTS/observations/OBJECT/ENV/gt`` (its 24 views
-with images give the posterior) and the default 100 candidate poses of rule
-``view_selection`` (a Fibonacci hemisphere rotated by 7 degrees), with the config's
-``sh``, ``spectrum`` and ``view_selection`` settings:
+Cases, on the observations of OBJECT/ENV (`freqbrdf.layout.OBSERVATIONS`, gt
+poses, under the results directory ``--results``, default the repository's
+`freqbrdf.layout.RESULTS`; its 24 views with images give the posterior) and
+the default 100 candidate poses of rule ``view_selection`` (a Fibonacci
+hemisphere rotated by 7 degrees), with the config's ``sh``, ``spectrum`` and
+``view_selection`` settings:
 
 - ``geometry``: which sampled texels each candidate sees (projection, facing, a
   Mitsuba ray cast per pair) and the light along the mirror directions;
@@ -12,7 +14,7 @@ with images give the posterior) and the default 100 candidate poses of rule
 - ``greedy_8``: greedy selection of 8 of them (9 rankings, each after the first
   re-evaluating only the texels the last pick sees).
 
-    python bench/view_selection_bench.py --results /path/to/results [--object sphere --env studio]
+    python bench/view_selection_bench.py [--results DIR] [--object sphere --env studio]
 
 Writes ``bench/out/view_selection.tsv``: seconds (one run after a warm-up that
 compiles the kernel), threads, texels, candidates, and the machine's 1-minute
@@ -32,6 +34,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from freqbrdf import layout
 from freqbrdf.artefacts import read_observations, sample_texels
 from freqbrdf.scene.cameras import Cameras, hemisphere_rig, intrinsics
 from freqbrdf.util.io import read_exr
@@ -52,7 +55,7 @@ OUT = REPO / "bench" / "out"
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--results", type=Path, default=REPO / "results")
+    parser.add_argument("--results", type=Path, default=REPO / layout.RESULTS, help="the results directory")
     parser.add_argument("--object", default="sphere")
     parser.add_argument("--env", default="studio")
     parser.add_argument("--texels", type=int, nargs="+", default=[1024, 2048, 4096])
@@ -62,8 +65,9 @@ def main() -> None:
     settings, render = config["view_selection"], config["render"]
     mi = setup_mitsuba(threads=args.threads)
     set_threads(args.threads)
-    obs = read_observations(args.results / "observations" / args.object / args.env / "gt")
-    envmap = read_exr(args.results / "envs" / f"{args.env}.exr")
+    capture = {"object": args.object, "env": args.env, "poses": "gt"}
+    obs = read_observations(layout.located(layout.OBSERVATIONS, args.results, **capture))
+    envmap = read_exr(layout.located(layout.ENVMAP, args.results, env=args.env))
     w2c = hemisphere_rig(settings["candidates"], render["camera_distance"], settings["candidate_azimuth_deg"])
     size = render["resolution"]
     cameras = Cameras(np.repeat(intrinsics(size, size, render["fov_deg"])[None], len(w2c), axis=0), w2c, size, size,
@@ -71,7 +75,8 @@ def main() -> None:
     n_capture = len(obs.meta["views"])
     a_prime = band_limit_parameter(n_capture + settings["select"], config["observations"]["band_limit"])
     incoming_map = band_limited_envmap(envmap, a_prime)
-    occluded = functools.partial(occlusion_test, mi, mesh_scene(mi, args.results / "objects" / args.object / "mesh.ply"))
+    mesh = layout.located(layout.OBJECT_MESH, args.results, object=args.object)
+    occluded = functools.partial(occlusion_test, mi, mesh_scene(mi, mesh))
     model = SelectionModel.from_config(config["sh"], config["spectrum"], a_prime, settings["posterior_min_views"])
     rows = []
 

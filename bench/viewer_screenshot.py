@@ -1,7 +1,10 @@
-"""Screenshot of a capture viewer (results/viewer/.../viewer.html) once its models have loaded.
+"""Screenshot of a capture viewer (`freqbrdf.layout.VIEWER`) once its models have loaded.
 
-    python bench/viewer_screenshot.py results/viewer/sphere/studio/gt/viewer.html --out shots \
+    python bench/viewer_screenshot.py VIEWER --out shots \
         [--shot "plain=rotate=0" --shot "sunny=rotate=0&env=sunny&entropy=1"] [--size 1400x900]
+
+VIEWER is a capture's ``viewer.html`` (`freqbrdf.layout.VIEWER`, e.g.
+sphere/studio's with gt poses, in the results directory).
 
 Writes shots/NAME.png for each --shot, the page's address options applied in
 turn, and prints a JSON line: the page's status ("ready" or "error"), its
@@ -75,7 +78,7 @@ def viewer_screenshots(chromium: str, page: Path, shots: dict[str, str], out: Pa
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("page", type=Path, help="a viewer.html")
+    parser.add_argument("page", type=Path, help="a viewer.html (layout.VIEWER)")
     parser.add_argument("--out", type=Path, required=True, help="directory for the PNGs")
     parser.add_argument("--shot", action="append", metavar="NAME=OPTIONS",
                         help="a screenshot NAME.png with the page's address OPTIONS (repeatable; "

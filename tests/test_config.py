@@ -82,7 +82,7 @@ def test_snakemake_stops_at_once_on_a_bad_key(repo, tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("render:\n  spp: -4\n")
     run = subprocess.run(
-        [sys.executable, "-m", "snakemake", "-s", str(repo / "Snakefile"), "-d", str(tmp_path), "-n", "--configfile", str(bad)],
+        [sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"), "-d", str(tmp_path), "-n", "--configfile", str(bad)],
         capture_output=True, text=True, timeout=120,
     )
     assert run.returncode != 0
@@ -175,3 +175,26 @@ def test_the_paper_preset_is_paper_yaml_over_the_default(repo, schema, default):
     assert OptimiseSettings.paper(iterations=300, lr=0.01) == dataclasses.replace(preset, iterations=300, lr=0.01)
     with pytest.raises(ValueError, match="lr must be a finite number > 0"):
         OptimiseSettings.paper(lr=0)
+
+
+def test_merge_config_layers_mappings_at_every_depth_and_replaces_the_rest() -> None:
+    from freqbrdf.config import merge_config
+
+    base = {"a": {"b": 1, "c": [1, 2], "d": {"e": 1}}, "f": 2}
+    override = {"a": {"c": [3], "d": {"g": 4}}, "h": 5}
+    assert merge_config(base, override) == {"a": {"b": 1, "c": [3], "d": {"e": 1, "g": 4}}, "f": 2, "h": 5}
+    assert base == {"a": {"b": 1, "c": [1, 2], "d": {"e": 1}}, "f": 2}  # not modified
+
+
+def test_with_defaults_fills_a_partial_config_in_place(tmp_path) -> None:
+    import yaml
+
+    from freqbrdf.config import ConfigError, with_defaults
+
+    default = tmp_path / "default.yaml"
+    default.write_text(yaml.safe_dump({"seed": 1, "render": {"spp": 64, "resolution": 256}}))
+    config = {"render": {"spp": 4}}
+    with_defaults(config, default)
+    assert config == {"seed": 1, "render": {"spp": 4, "resolution": 256}}
+    with pytest.raises(ConfigError, match="missing.yaml: the embedded default config is missing"):
+        with_defaults({}, tmp_path / "missing.yaml")

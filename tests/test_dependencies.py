@@ -49,7 +49,7 @@ def test_an_edited_module_is_read_again_in_the_same_process(tmp_path: Path) -> N
 
 def rule_blocks() -> dict[str, str]:
     blocks = {}
-    for smk in sorted((REPO / "rules").glob("*.smk")):
+    for smk in sorted((REPO / "workflow" / "rules").glob("*.smk")):
         for block in re.split(r"\n(?=rule )", smk.read_text()):
             if block.startswith("rule "):
                 blocks[block.split(":")[0].removeprefix("rule ").strip()] = block
@@ -62,7 +62,7 @@ def test_every_rule_declares_the_modules_of_its_own_script() -> None:
     blocks = rule_blocks()
     assert len(blocks) > 15
     for name, block in blocks.items():
-        script = re.search(r'script:\s*"\.\./workflow/scripts/(\w+)\.py"', block)
+        script = re.search(r'script:\s*"\.\./scripts/(\w+)\.py"', block)
         if script is None:
             continue
         declared = re.findall(r'code=library\("(\w+)"\)', block)
@@ -192,7 +192,7 @@ def test_conda_env_has_exactly_the_pyproject_pins() -> None:
 
     project = tomllib.loads((REPO / "workflow" / "pyproject.toml").read_text())["project"]
     expected = {name.lower(): version for name, version in (pin.split("==") for pin in project["dependencies"])}
-    env_file = REPO / "envs" / "freqbrdf.yaml"
+    env_file = REPO / "workflow" / "envs" / "freqbrdf.yaml"
     pins, python = conda_env_pins(env_file)
     assert pins == expected
     # The Python it creates is one pyproject accepts (requires-python >=3.11,<3.13).

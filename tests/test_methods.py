@@ -58,7 +58,7 @@ def test_every_estimating_rule_exists_and_constrains_its_methods():
     (spectrum_search writes the literal 'spectrum' path instead)."""
     from pathlib import Path
 
-    text = "\n".join(p.read_text() for p in sorted((Path(__file__).parents[1] / "rules").glob("*.smk")))
+    text = "\n".join(p.read_text() for p in sorted((Path(__file__).parents[1] / "workflow" / "rules").glob("*.smk")))
     for rule in methods.ESTIMATOR_RULES:
         block = text.split(f"rule {rule}:", 1)
         assert len(block) == 2, f"rule {rule} is not defined in rules/"

@@ -18,7 +18,7 @@ from synthetic import rewrite_z_up
 def snakemake(repo, workdir, *args, extra_config=(), check=True, base="tiny.yaml"):
     # --configfile takes several values, so it goes last, after any targets.
     configs = [str(repo / "config" / base), *map(str, extra_config)]
-    command = [sys.executable, "-m", "snakemake", "-s", str(repo / "Snakefile"), "-d", str(workdir), "--cores", "2",
+    command = [sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"), "-d", str(workdir), "--cores", "2",
                *args, "--configfile", *configs]
     run = subprocess.run(command, capture_output=True, text=True, timeout=900)
     if check and run.returncode != 0:
@@ -623,21 +623,60 @@ def through_mitsuba(method):
                                   (entry.start is not None and through_mitsuba(entry.start)))
 
 
-def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
-    """A consumer directory with only a config and a `module` declaration runs the tiny preset
-    to completion, with the same numbers as the run from this repository."""
-    import pandas as pd
+def consumer(repo, directory, config: dict) -> None:
+    """A consumer workflow in ``directory``: its own config.yaml and a `module` declaration of this one."""
     import yaml
-    from snakemake.utils import update_config
 
-    config = yaml.safe_load((repo / "config" / "config.yaml").read_text())
-    update_config(config, yaml.safe_load((repo / "config" / "tiny.yaml").read_text()))
-    (tmp_path / "config.yaml").write_text(yaml.safe_dump(config))
-    (tmp_path / "Snakefile").write_text(
+    (directory / "config.yaml").write_text(yaml.safe_dump(config))
+    (directory / "Snakefile").write_text(
         'configfile: "config.yaml"\n\n\n'
-        f'module freqbrdf:\n    snakefile:\n        "{repo / "Snakefile"}"\n    config:\n        config\n\n\n'
+        f'module freqbrdf:\n    snakefile:\n        "{repo / "workflow" / "Snakefile"}"\n    config:\n        config\n\n\n'
         "use rule * from freqbrdf\n"
     )
+
+
+def test_a_consumer_config_of_three_keys_is_completed_by_the_embedded_default(repo, tmp_path):
+    """The module's own default fills in what a consumer leaves out: a three-key config plans the run."""
+    consumer(repo, tmp_path, {"objects": ["sphere"], "capture_envs": ["studio"], "methods": ["spectrum", "freq"]})
+    done = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--cores", "2"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-4000:]
+    jobs = planned_jobs(done.stdout)
+    assert jobs["optimise_svbrdf"] == 1 and jobs["spectrum_search"] == 1 and "mitsuba" not in jobs
+
+
+def test_snakedeploy_deploys_the_workflow_without_a_warning_and_the_deployment_plans_a_run(repo, tmp_path):
+    """`snakedeploy deploy-workflow` finds workflow/Snakefile and the config where it looks for them (no
+    warning) and writes a module declaration of it. A local deployment names the Snakefile relative to
+    the repository (snakedeploy's Local provider; a GitHub one writes github(...)): pointing it at the
+    checkout is the one-line change docs/cluster.md gives, after which the deployment plans a run."""
+    source = tmp_path / "source"
+    subprocess.run(["git", "clone", "-q", str(repo), str(source)], check=True)
+    for path in ("workflow", "config"):  # the working tree as it is, committed or not
+        subprocess.run(["cp", "-r", str(repo / path), str(source)], check=True)
+    deployed = tmp_path / "deployed"
+    snakedeploy = [sys.executable, "-c", "import sys; from snakedeploy.client import main; sys.exit(main())"]
+    done = subprocess.run([*snakedeploy, "deploy-workflow", str(source), str(deployed),
+                           "--branch", "main"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "not found in traditional path" not in done.stdout + done.stderr
+    snakefile = deployed / "workflow" / "Snakefile"
+    declaration = snakefile.read_text()
+    assert '"workflow/Snakefile"' in declaration and (deployed / "config" / "config.yaml").is_file()
+    snakefile.write_text(declaration.replace('"workflow/Snakefile"', f'"{source / "workflow" / "Snakefile"}"'))
+    planned = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--cores", "2"], cwd=deployed,
+                             capture_output=True, text=True, timeout=300)
+    assert planned.returncode == 0, planned.stderr[-4000:]
+    assert planned_jobs(planned.stdout)["optimise_svbrdf"] > 0
+
+
+def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
+    """A consumer directory with only a module declaration and a partial config (the tiny preset's
+    keys alone) runs to completion, with the same numbers as the run from this repository."""
+    import pandas as pd
+    import yaml
+
+    consumer(repo, tmp_path, yaml.safe_load((repo / "config" / "tiny.yaml").read_text()))
     done = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2"], cwd=tmp_path,
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr[-4000:]

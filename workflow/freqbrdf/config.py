@@ -12,6 +12,36 @@ class ConfigError(ValueError):
     """A configuration value is invalid; the message names the key."""
 
 
+def merge_config(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    """``override`` layered on ``base``, as Snakemake layers config files: mappings are merged key
+    by key, at every depth; any other value (lists included) replaces the base's. Neither
+    argument is modified."""
+    merged = dict(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+            merged[key] = merge_config(merged[key], value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def with_defaults(config: dict[str, Any], default: str | Path) -> None:
+    """Fill in place what ``config`` leaves out from the YAML file ``default`` (`merge_config`).
+
+    A run from the command line already starts from the default (the Snakefile's
+    ``configfile``), so this changes nothing there; a workflow that uses this one as a module
+    passes its own config, which replaces the default, and may give only the keys it changes.
+    """
+    import yaml
+
+    path = Path(default)
+    if not path.is_file():
+        raise ConfigError(f"{path}: the embedded default config is missing")
+    merged = merge_config(yaml.safe_load(path.read_text()) or {}, config)
+    config.clear()
+    config.update(merged)
+
+
 def _key_path(path) -> str:
     return ".".join(str(p) for p in path) or "<top level>"
 

@@ -65,6 +65,8 @@ GLTF = "results/gltf/{object}/{env}/{poses}/{method}.glb"
 TRUTH = "truth"  # the ground truth's name beside the methods': its .glb file, glTF node and material, viewer panel
 TRUTH_GLTF = "results/gltf/{object}/" + TRUTH + ".glb"
 VIEWER = "results/viewer/{object}/{env}/{poses}/viewer.html"
+REPORT = "results/report.html"  # snakemake --report's target
+REPORT_SCREENSHOTS = "results/report_screenshots"
 
 # What every job leaves beside its outputs
 LOG = "results/logs/{rule}/{job}.log"

@@ -79,7 +79,7 @@ rule tables:
             "methods": METHODS,
         },
     script:
-        "../workflow/scripts/tables.py"
+        "../scripts/tables.py"
 
 
 rule capture_figure:
@@ -112,7 +112,7 @@ rule capture_figure:
     params:
         methods=METHODS,
     script:
-        "../workflow/scripts/capture_figure.py"
+        "../scripts/capture_figure.py"
 
 
 rule relight_figure:
@@ -145,7 +145,7 @@ rule relight_figure:
         # PSNR-H of the view scored as metrics.csv scores the test set (rules/evaluate.smk)
         metrics={key: config["evaluate"][key] for key in METRIC_KEYS},
     script:
-        "../workflow/scripts/relight_figure.py"
+        "../scripts/relight_figure.py"
 
 
 rule convergence_figure:
@@ -178,7 +178,7 @@ rule convergence_figure:
         starts=[METHOD_REGISTRY[m].start for m in CONVERGENCE_CURVES],
         points=CONVERGENCE_POINTS,
     script:
-        "../workflow/scripts/convergence_figure.py"
+        "../scripts/convergence_figure.py"
 
 
 rule regulariser_figure:
@@ -210,4 +210,4 @@ rule regulariser_figure:
         alpha=0.3,  # the lobe filtering the light (roughness 0.55, mid-range of the benchmark)
         seed=lambda w: derived_seed(config["seed"], "regulariser", w.object, w.env, w.poses),
     script:
-        "../workflow/scripts/regulariser_figure.py"
+        "../scripts/regulariser_figure.py"

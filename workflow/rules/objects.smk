@@ -22,4 +22,4 @@ rule build_object:
         seed=lambda wildcards: derived_seed(config["seed"], "object", object_shape(wildcards.object)),
         material=lambda wildcards: stress_material(wildcards.object),
     script:
-        "../workflow/scripts/build_object.py"
+        "../scripts/build_object.py"

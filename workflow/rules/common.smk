@@ -86,7 +86,7 @@ wildcard_constraints:
     method=wildcard_pattern(list(METHOD_REGISTRY)),
 
 
-# Scheduler resources (README "Running on a cluster"): each rule's peak memory (MB) and
+# Scheduler resources (docs/cluster.md, "Running on a cluster"): each rule's peak memory (MB) and
 # wall time (minutes) of its largest job on the shipped default config, measured from
 # the benchmark files of a default run (python bench/resources.py) with headroom, and
 # scaled to this configuration by what the job's work grows with.
@@ -104,8 +104,8 @@ def minutes(amount, kind="fixed"):
 # the SLURM executor turns the gpu resource into --gpus.
 MITSUBA_GPUS = int(config["mitsuba"]["variant"] == "cuda_ad_rgb")
 
-LIBRARY = REPO / "workflow" / "freqbrdf"
-SCRIPTS = REPO / "workflow" / "scripts"
+LIBRARY = WORKFLOW / "freqbrdf"
+SCRIPTS = WORKFLOW / "scripts"
 
 
 def library(script):

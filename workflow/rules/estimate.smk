@@ -26,4 +26,4 @@ rule optimise_svbrdf:
     params:
         optimise=config["optimise"],
     script:
-        "../workflow/scripts/optimise_svbrdf.py"
+        "../scripts/optimise_svbrdf.py"

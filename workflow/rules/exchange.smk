@@ -36,7 +36,7 @@ rule export_capture:
         mem_mb=memory(500, "pixels"),
         runtime=minutes(1, "pixels"),
     script:
-        "../workflow/scripts/export_capture.py"
+        "../scripts/export_capture.py"
 
 
 rule import_capture:
@@ -67,7 +67,7 @@ rule import_capture:
         up_axis=lambda wildcards: REAL_CAPTURES[wildcards.object]["up_axis"],
         camera=lambda wildcards: REAL_CAPTURES[wildcards.object]["camera"],
     script:
-        "../workflow/scripts/import_capture.py"
+        "../scripts/import_capture.py"
 
 
 rule env_orientation:
@@ -101,7 +101,7 @@ rule env_orientation:
         resolution=config["textures"]["resolution"],
         seed=lambda wildcards: derived_seed(config["seed"], "env_orientation", wildcards.object),
     script:
-        "../workflow/scripts/env_orientation.py"
+        "../scripts/env_orientation.py"
 
 
 rule import_textures:
@@ -123,7 +123,7 @@ rule import_textures:
         checksum=lambda wildcards: source_checksum(REAL_CAPTURES[wildcards.object]["textures"]),
         resolution=config["textures"]["resolution"],
     script:
-        "../workflow/scripts/import_textures.py"
+        "../scripts/import_textures.py"
 
 
 rule score_real_capture:
@@ -150,7 +150,7 @@ rule score_real_capture:
         methods=METHODS,
         entropy_methods=[m for m in METHODS if METHOD_REGISTRY[m].entropy_scored],
     script:
-        "../workflow/scripts/score_real_capture.py"
+        "../scripts/score_real_capture.py"
 
 
 rule relight_real:
@@ -183,7 +183,7 @@ rule relight_real:
         max_depth=config["render"]["max_depth"],
         seed=lambda wildcards: derived_seed(config["seed"], "relight_real", wildcards.object),
     script:
-        "../workflow/scripts/relight_real.py"
+        "../scripts/relight_real.py"
 
 
 rule score_real_relight:
@@ -207,7 +207,7 @@ rule score_real_relight:
         methods=METHODS,
         metrics={key: config["evaluate"][key] for key in ("mask_min_coverage", "hdr_clip", "hdr_normalise")},
     script:
-        "../workflow/scripts/score_real_relight.py"
+        "../scripts/score_real_relight.py"
 
 
 rule real_captures:

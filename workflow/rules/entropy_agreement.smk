@@ -44,4 +44,4 @@ rule entropy_agreement:
         max_depth=config["render"]["max_depth"],
         seed=lambda w: derived_seed(config["seed"], "entropy_agreement", w.object, w.env, w.poses),
     script:
-        "../workflow/scripts/entropy_agreement.py"
+        "../scripts/entropy_agreement.py"

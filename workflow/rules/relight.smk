@@ -41,4 +41,4 @@ rule relight:
             derived_seed(config["seed"], "render", w.object, r, "test") for r in relight_envs(w.env, w.method)
         ],
     script:
-        "../workflow/scripts/relight.py"
+        "../scripts/relight.py"

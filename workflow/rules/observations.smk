@@ -25,4 +25,4 @@ rule extract_observations:
         resolution=config["textures"]["resolution"],
         settings=config["observations"],
     script:
-        "../workflow/scripts/extract_observations.py"
+        "../scripts/extract_observations.py"

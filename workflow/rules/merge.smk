@@ -24,4 +24,4 @@ rule merge_svbrdf:
     params:
         envs=merge_envs,
     script:
-        "../workflow/scripts/merge_svbrdf.py"
+        "../scripts/merge_svbrdf.py"

@@ -32,4 +32,4 @@ rule render_capture:
         azimuth_deg=lambda wildcards: 0.0 if wildcards.split == "train" else config["render"]["test_azimuth_deg"],
         seed=lambda wildcards: derived_seed(config["seed"], "render", wildcards.object, wildcards.env, wildcards.split),
     script:
-        "../workflow/scripts/render_capture.py"
+        "../scripts/render_capture.py"

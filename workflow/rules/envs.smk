@@ -22,7 +22,7 @@ rule build_env:
         height=config["envmaps"]["height"],
         mean_radiance=config["envmaps"]["mean_radiance"],
     script:
-        "../workflow/scripts/build_env.py"
+        "../scripts/build_env.py"
 
 
 rule env_spectrum:
@@ -43,7 +43,7 @@ rule env_spectrum:
     params:
         lmax=config["envmaps"]["spectrum_lmax"],
     script:
-        "../workflow/scripts/env_spectrum.py"
+        "../scripts/env_spectrum.py"
 
 
 rule env_spectra:
@@ -63,4 +63,4 @@ rule env_spectra:
     params:
         envs=ENVS,
     script:
-        "../workflow/scripts/env_spectra.py"
+        "../scripts/env_spectra.py"

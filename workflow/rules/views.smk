@@ -37,4 +37,4 @@ rule views_sweep:
         spectrum=config["spectrum"],
         optimise=config["optimise"],
     script:
-        "../workflow/scripts/views_sweep.py"
+        "../scripts/views_sweep.py"

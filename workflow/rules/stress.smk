@@ -70,4 +70,4 @@ rule stress_tables:
         # a texel is in the occluder's shadow when the disk blocks at least this share of its light
         shadow_fraction=0.1,
     script:
-        "../workflow/scripts/stress_tables.py"
+        "../scripts/stress_tables.py"

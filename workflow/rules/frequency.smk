@@ -19,7 +19,7 @@ rule fit_sh:
     params:
         sh=config["sh"],
     script:
-        "../workflow/scripts/fit_sh.py"
+        "../scripts/fit_sh.py"
 
 
 rule spectrum_search:
@@ -46,4 +46,4 @@ rule spectrum_search:
     params:
         spectrum=config["spectrum"],
     script:
-        "../workflow/scripts/spectrum_search.py"
+        "../scripts/spectrum_search.py"

@@ -33,7 +33,7 @@ rule export_gltf:
     params:
         name=lambda wildcards: wildcards.method,
     script:
-        "../workflow/scripts/export_gltf.py"
+        "../scripts/export_gltf.py"
 
 
 rule export_truth_gltf:
@@ -55,7 +55,7 @@ rule export_truth_gltf:
     params:
         name=layout.TRUTH,
     script:
-        "../workflow/scripts/export_truth_gltf.py"
+        "../scripts/export_truth_gltf.py"
 
 
 rule export_env:
@@ -75,7 +75,7 @@ rule export_env:
         mem_mb=memory(500),
         runtime=minutes(1),
     script:
-        "../workflow/scripts/export_env.py"
+        "../scripts/export_env.py"
 
 
 rule viewer:
@@ -107,4 +107,4 @@ rule viewer:
         envs=ENVS,
         title=lambda w: f"FreqBRDF: {w.object} / {w.env} ({w.poses} poses)",
     script:
-        "../workflow/scripts/viewer.py"
+        "../scripts/viewer.py"

@@ -26,7 +26,7 @@ rule colmap_poses:
         },
         seed=lambda wildcards: derived_seed(config["seed"], "sfm", wildcards.object, wildcards.env),
     script:
-        "../workflow/scripts/colmap_poses.py"
+        "../scripts/colmap_poses.py"
 
 
 rule pose_errors:
@@ -46,4 +46,4 @@ rule pose_errors:
     params:
         captures=BENCHMARK_CAPTURES,
     script:
-        "../workflow/scripts/pose_errors.py"
+        "../scripts/pose_errors.py"

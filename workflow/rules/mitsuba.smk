@@ -34,4 +34,4 @@ rule mitsuba:
         resolution=config["textures"]["resolution"],
         settings=mitsuba_settings,
     script:
-        "../workflow/scripts/mitsuba.py"
+        "../scripts/mitsuba.py"

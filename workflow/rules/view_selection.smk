@@ -1,4 +1,4 @@
-# Entropy-guided view selection (beyond the paper; README "View selection"): the ranking
+# Entropy-guided view selection (beyond the paper; docs/view_selection.md): the ranking
 # of candidate poses for the first synthetic capture, and the comparison with random and
 # evenly spread views on every synthetic capture (config view_selection.sweep_counts;
 # none when the list is empty).
@@ -51,7 +51,7 @@ rule view_selection:
         spectrum=config["spectrum"],
         seed=lambda w: derived_seed(config["seed"], "view_selection", w.object, w.env, w.poses),
     script:
-        "../workflow/scripts/view_selection.py"
+        "../scripts/view_selection.py"
 
 
 rule view_selection_sweep:
@@ -87,7 +87,7 @@ rule view_selection_sweep:
         spectrum=config["spectrum"],
         optimise=config["optimise"],
     script:
-        "../workflow/scripts/view_selection_sweep.py"
+        "../scripts/view_selection_sweep.py"
 
 
 rule view_selection_table:
@@ -116,4 +116,4 @@ rule view_selection_table:
     params:
         captures=VIEW_SELECTION_SWEEP_CAPTURES,
     script:
-        "../workflow/scripts/view_selection_table.py"
+        "../scripts/view_selection_table.py"

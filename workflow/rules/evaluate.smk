@@ -55,4 +55,4 @@ rule metrics:
         views=[(o, e, POSES) for o, e in VIEWS_CAPTURES],
         agreement=[(o, e, POSES) for o, e in AGREEMENT_CAPTURES],
     script:
-        "../workflow/scripts/metrics.py"
+        "../scripts/metrics.py"
