@@ -208,3 +208,47 @@ def test_conda_env_pins_are_read_from_both_sections(tmp_path: Path) -> None:
     env.write_text("dependencies:\n  - numpy >=2\n")
     with pytest.raises(AssertionError, match="not pinned"):
         conda_env_pins(env)
+
+
+def module_graph() -> dict[str, set[str]]:
+    """Package-relative module files -> the package modules their module-level imports name
+    (imports inside functions run later and cannot make an import cycle)."""
+    import ast
+
+    def target(dotted: str) -> str | None:
+        base = PACKAGE.joinpath(*dotted.split("."))
+        for candidate in (base / "__init__.py", base.with_suffix(".py")):
+            if candidate.is_file():
+                return str(candidate.relative_to(PACKAGE))
+        return None
+
+    graph = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        edges = set()
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("freqbrdf."):
+                base = node.module.removeprefix("freqbrdf.")
+                edges |= {t for alias in node.names for t in [target(f"{base}.{alias.name}") or target(base)] if t}
+            elif isinstance(node, ast.Import):
+                edges |= {t for alias in node.names if alias.name.startswith("freqbrdf.")
+                          for t in [target(alias.name.removeprefix("freqbrdf."))] if t}
+        graph[str(path.relative_to(PACKAGE))] = edges - {str(path.relative_to(PACKAGE))}
+    return graph
+
+
+def test_no_module_level_import_cycle() -> None:
+    graph = module_graph()
+    assert graph["estimate/optimise/solve.py"] >= {"estimate/optimise/model.py", "estimate/optimise/kernels.py"}
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+
+    def visit(node: str, path: list[str]) -> None:
+        state[node] = 1
+        for nxt in sorted(graph.get(node, ())):
+            assert state.get(nxt) != 1, f"import cycle: {' -> '.join(path[path.index(nxt):] + [nxt])}"
+            if nxt not in state:
+                visit(nxt, path + [nxt])
+        state[node] = 2
+
+    for start in sorted(graph):
+        if start not in state:
+            visit(start, [start])
