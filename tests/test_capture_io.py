@@ -226,3 +226,62 @@ def test_turn_envmap_rolls_whole_columns_and_fov_needs_a_centred_pinhole():
     off_centre = Cameras(K=K, world_to_camera=shifted.world_to_camera, width=40, height=30, names=shifted.names)
     with pytest.raises(ValueError, match="c.json: needs one square-pixel focal length and a centred principal point"):
         pinhole_fov_deg(off_centre, "c.json")
+
+
+def _write_nan_view(path, height=30, width=40):
+    """An all-NaN view (write_exr refuses NaN, so OpenEXR writes it)."""
+    import OpenEXR
+
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, {"RGB": np.full((height, width, 3), np.nan, np.float32)}) as f:
+        f.write(str(path))
+
+
+def _usable_views(out, min_usable=1):
+    """What extract_observations reports of an imported capture (its steps without Mitsuba: nothing occludes)."""
+    from freqbrdf.capture.exchange import capture_source
+    from freqbrdf.capture.observations import observe, rasterise_uv
+    from freqbrdf.capture.view_usability import check_views, nonfinite_views
+    from freqbrdf.util.io import read_views
+
+    cams = cameras_from_json(read_json(out / "train/cameras.json"))
+    images, coverage, _ = read_views(out / "train", cams.names, cams.width, cams.height)
+    obs = observe(rasterise_uv(read_ply(out / "mesh.ply"), 16), cams, images, coverage, np.ones((4, 8, 3), np.float32),
+                  lambda origins, directions, lengths: np.zeros(len(origins), bool))
+    source, labels = capture_source(out / "train", cams.names)
+    lost = check_views(labels, (obs["weight"] > 0).sum(axis=0), images, coverage, obs["view_candidates"],
+                       min_usable=min_usable, source=source)
+    return lost, nonfinite_views(labels, images)
+
+
+def test_a_camera_looking_away_and_an_all_nan_view_are_named_in_the_users_file(tmp_path):
+    orb = _orb(tmp_path / "orb")
+    transforms = read_json(orb / "transforms_train.json")
+    c2w = np.array(transforms["frames"][1]["transform_matrix"])
+    c2w[:3, 0] *= -1.0  # turned by 180 degrees about its own y axis: it looks away from the object
+    c2w[:3, 2] *= -1.0
+    transforms["frames"][1]["transform_matrix"] = c2w.tolist()
+    write_json(orb / "transforms_train.json", transforms)
+    _write_nan_view(orb / "train/0002.exr")
+    _import(orb, tmp_path / "out")  # both views are readable: the import accepts them
+    lost, nonfinite = _usable_views(tmp_path / "out")
+    assert lost == (f"{orb}/transforms_train.json: 2 of 3 views give no observed (texel, view) pair and add "
+                    "nothing to the estimates; the camera sees no part of the mesh (it looks away from the object, "
+                    "or its pose is wrong): ./train/0001; every pixel is NaN/Inf: ./train/0002")
+    assert nonfinite == "1 of 3 views: ./train/0002 (all 1200 pixels)"
+    with pytest.raises(ValueError, match=r"transforms_train.json: only 1 of 3 views give an observed \(texel, view\) "
+                                         r"pair, fewer than observations.min_usable_views = 2; the camera sees"):
+        _usable_views(tmp_path / "out", min_usable=2)
+
+
+def test_a_capture_without_a_usable_view_stops_naming_the_users_transforms(tmp_path):
+    orb = _orb(tmp_path / "orb")
+    for k in range(3):
+        _write_nan_view(orb / f"train/{k:04d}.exr")
+    _import(orb, tmp_path / "out")
+    with pytest.raises(ValueError) as info:
+        _usable_views(tmp_path / "out")
+    assert str(info.value) == (f"{orb}/transforms_train.json: no (texel, view) pair is observed; "
+                               "every pixel is NaN/Inf: ./train/0000, ./train/0001, ./train/0002")
+    assert str(tmp_path / "out") not in str(info.value)
+    assert read_json(tmp_path / "out/train/source.json")["frames"]["0001"] == "./train/0001"

@@ -234,6 +234,7 @@ def test_compiled_observe_equals_the_numpy_reference(meshes, with_distances, dty
     ref = observe(texels, cameras, images, coverage, env, occluded, **kwargs, compiled=False)
     assert ref["nonfinite"] > 0 and (ref["weight"] > 0).sum() > 100
     assert fast["nonfinite"] == ref["nonfinite"]
+    np.testing.assert_array_equal(fast["view_candidates"], ref["view_candidates"])
     for name in ("radiance", "weight"):
         np.testing.assert_array_equal(fast[name], ref[name], err_msg=name)
     for name in ("wo_local", "incoming"):
@@ -322,7 +323,7 @@ def test_bilinear_views_on_no_samples():
 
 
 def test_unusable_views_are_named_with_their_reason():
-    from freqbrdf.capture.observations import unusable_views
+    from freqbrdf.capture.view_usability import nonfinite_views, unusable_views
 
     images = np.ones((4, 5, 6, 3), np.float32)
     coverage = np.ones((4, 5, 6), np.float32)
@@ -333,3 +334,19 @@ def test_unusable_views_are_named_with_their_reason():
     assert unusable_views(["a", "b", "c", "d"], images, coverage) == (
         "every pixel is NaN/Inf: a; mask is empty: b; no finite pixel inside the mask: c; "
         "no texel seen inside the mask (poses, mesh and mask disagree): d")
+    assert nonfinite_views(["a", "b", "c", "d"], images) == "2 of 4 views: a (all 30 pixels), c (15 of 30 pixels)"
+    # With the texels each camera has in view: one that sees none looks away from the object.
+    assert unusable_views(["a", "b", "c", "d"], images, coverage, np.array([0, 5, 5, 0])).endswith(
+        "no finite pixel inside the mask: c; "
+        "the camera sees no part of the mesh (it looks away from the object, or its pose is wrong): d")
+
+
+def test_observe_counts_the_texels_each_camera_has_in_view():
+    mesh = make_mesh("sphere")
+    toward, away = look_at(np.array([0.0, 1.0, 4.0])), look_at(np.array([0.0, 1.0, 4.0]), np.array([0.0, 2.0, 8.0]))
+    cameras = _cameras(np.stack([toward, away]))
+    images = np.ones((2, SIZE, SIZE, 3), np.float32)
+    obs = observe(rasterise_uv(mesh, 16), cameras, images, np.ones((2, SIZE, SIZE), np.float32),
+                  np.ones((4, 8, 3), np.float32), lambda origins, directions, lengths: np.zeros(len(origins), bool))
+    assert obs["view_candidates"][0] > 0 and obs["view_candidates"][1] == 0
+    assert (obs["weight"][:, 0] > 0).any() and not (obs["weight"][:, 1] > 0).any()

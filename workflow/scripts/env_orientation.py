@@ -12,7 +12,7 @@ from freqbrdf.util.logs import run_script
 from freqbrdf.scene.ply import read_ply
 from freqbrdf.util.mitsuba_setup import setup_mitsuba
 from freqbrdf.capture.observations import band_limit_parameter, edge_free_distances, observe, rasterise_uv
-from freqbrdf.capture.orientation import best_azimuth
+from freqbrdf.capture.orientation import best_azimuth, patch_index, summary
 from freqbrdf.scene.raycast import distance_maps, mesh_scene, occlusion_test
 from freqbrdf.sphere.sh import project_equirect
 
@@ -20,8 +20,6 @@ from freqbrdf.sphere.sh import project_equirect
 # bounded number of pairs: the SH basis is (pairs x (lmax + 1)^2) floats.
 CHECK_RESOLUTION = 64
 MAX_PAIRS = 200_000
-# Patches of PATCH x PATCH texels share one fit (freqbrdf.capture.orientation): 64 patches at 64^2.
-PATCH = 8
 
 
 def mirror_pairs(mi, smk, settings):
@@ -41,8 +39,7 @@ def mirror_pairs(mi, smk, settings):
     # Mirror of wo about the normal, (-x, -y, z) locally, back to world axes.
     frame = np.stack([texels.tangent[ti], texels.bitangent[ti], texels.normal[ti]], axis=1)
     mirror = np.einsum("pij,pi->pj", frame, wo * np.array([-1.0, -1.0, 1.0]))
-    row, column = np.divmod(texels.texel[ti], texels.resolution)
-    patch = (row // PATCH) * (-(-texels.resolution // PATCH)) + column // PATCH
+    patch = patch_index(texels.texel[ti], texels.resolution)  # each patch has its own fit
     return obs["radiance"][ti, ki] @ LUMINANCE, texels.normal[ti], mirror, patch, len(cameras)
 
 
@@ -52,7 +49,7 @@ def main(smk, log):
     given = read_exr(smk.input.envmap)
     radiance, normal, mirror, group, n_views = mirror_pairs(mi, smk, settings)
     if not len(radiance):  # extract_observations stops on this capture, naming the unusable views
-        log.warning("no (texel, view) pair is observed: orientation not checked")
+        log.warning("%s: no (texel, view) pair is observed: orientation not checked", smk.params.source)
         write_exr(smk.output.envmap, given)
         write_json(smk.output.rotation, {"degrees": 0.0})
         with atomic_path(smk.output.scores) as tmp:
@@ -68,19 +65,22 @@ def main(smk, log):
     with atomic_path(smk.output.scores) as tmp:
         tmp.write_text("shift_columns\tdegrees\texplained\n" + "".join(
             f"{s}\t{360.0 * s / given.shape[1]:.3f}\t{e:.6f}\n" for s, e in result["scores"]))
-    summary = (f"turned by {result['degrees']:.1f} degrees about the up axis it explains {result['best']:.3f} "
-               f"of the within-patch variance, as given {result['given']:.3f} ({len(radiance)} pairs)")
-    if smk.params.align:
-        log.info("align_env: %s; applied", summary)
+    found = summary(result, len(radiance))
+    if smk.params.align and result["significant"]:
+        log.info("align_env: %s; applied", found)
         write_exr(smk.output.envmap, turn_envmap(given, result["degrees"]))
         # The test views' own maps come in the same convention: relight_real turns them alike.
         write_json(smk.output.rotation, {"degrees": result["degrees"]})
         return
-    if result["clearly_worse"]:
+    if smk.params.align:
+        # Turning the map to a rotation the views do not single out would trade it for chance.
+        log.info("align_env: the map as given is not significantly worse than the best rotation, so it is kept: %s",
+                 found)
+    elif result["clearly_worse"]:
         log.warning("%s/envmap.exr may be wrongly oriented: %s; set align_env: true for this capture to apply it",
-                    smk.params.source, summary)
+                    smk.params.source, found)
     else:
-        log.info("orientation as given is kept: %s", summary)
+        log.info("orientation as given is kept: %s", found)
     write_exr(smk.output.envmap, given)
     write_json(smk.output.rotation, {"degrees": 0.0})
 

@@ -12,12 +12,15 @@ import functools
 import time
 from pathlib import Path
 
+import numpy as np
+
 from freqbrdf.artefacts import ObservationsWriter
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import atomic_directory, read_exr, read_json, read_views
 from freqbrdf.util.logs import progress, run_script
 from freqbrdf.scene.ply import read_ply
 from freqbrdf.util.mitsuba_setup import setup_mitsuba
+from freqbrdf.capture.exchange import capture_source
 from freqbrdf.capture.kernels import set_threads as set_kernel_threads
 from freqbrdf.capture.observations import (
     band_limit_parameter,
@@ -25,8 +28,8 @@ from freqbrdf.capture.observations import (
     edge_free_distances,
     observe,
     rasterise_uv,
-    unusable_views,
 )
+from freqbrdf.capture.view_usability import check_views, nonfinite_views
 from freqbrdf.report.plots import coverage_figure
 from freqbrdf.scene.raycast import distance_maps, mesh_scene, occlusion_test
 
@@ -44,8 +47,10 @@ def _extract(mi, smk, log, settings, tmp):
     cameras_file = Path(smk.input.poses) / "cameras.json"
     cameras = cameras_from_json(read_json(cameras_file), source=cameras_file)
     images, coverage, nonfinite_pixels = read_views(smk.input.capture, cameras.names, cameras.width, cameras.height)
+    # Messages name the capture as the user gave it: an import's transforms file and frames.
+    source, labels = capture_source(smk.input.capture, cameras.names)
     if nonfinite_pixels:
-        log.warning("%d NaN/Inf pixel values in the views: masked, never observed", nonfinite_pixels)
+        log.warning("%s: NaN/Inf pixels, masked and never observed, in %s", source, nonfinite_views(labels, images))
     texels = rasterise_uv(read_ply(smk.input.mesh), smk.params.resolution, settings["dilate_texels"])
     log.info("%d valid texels (%d by dilation), %d views, loaded in %.1f s",
              len(texels), texels.dilated.sum(), len(cameras), time.perf_counter() - start)
@@ -63,6 +68,7 @@ def _extract(mi, smk, log, settings, tmp):
         jump=settings["edge_jump"],
     )
     nonfinite_pairs = 0
+    view_pairs, view_candidates = np.zeros(len(cameras), np.int64), np.zeros(len(cameras), np.int64)
     chunk = settings["chunk_texels"]
     for s in range(0, n_tex, chunk):
         obs = observe(texels.subset(slice(s, s + chunk)), cameras, images, coverage, incoming_map, occluded,
@@ -70,13 +76,16 @@ def _extract(mi, smk, log, settings, tmp):
                       ray_offset=settings["ray_offset"], footprint_slack=settings["footprint_slack"])
         writer.write(s, obs)
         nonfinite_pairs += obs["nonfinite"]
+        view_pairs += (obs["weight"] > 0).sum(axis=0)
+        view_candidates += obs["view_candidates"]
         log.info("texels %d-%d observed: chunk %s", s, min(s + chunk, n_tex),
                  progress(s // chunk + 1, -(-n_tex // chunk), time.perf_counter() - start))
     views_per_texel = writer.views_per_texel()
-    if not views_per_texel.any():
-        # Every later stage would fail on an empty capture, naming its own artefact instead.
-        raise ValueError(f"{smk.input.capture}: no (texel, view) pair is observed; "
-                         f"{unusable_views(cameras.names, images, coverage)}")
+    # Raises when fewer views than the minimum give observations (none: later stages would fail).
+    lost = check_views(labels, view_pairs, images, coverage, view_candidates,
+                       min_usable=settings["min_usable_views"], source=source)
+    if lost:
+        log.warning("%s", lost)
     writer.close({
         "poses": smk.wildcards.poses,
         "band_limit": {"rule": settings["band_limit"], "a_prime": a_prime},
@@ -84,6 +93,7 @@ def _extract(mi, smk, log, settings, tmp):
         "unobserved_texels": int((views_per_texel == 0).sum()),
         "nonfinite_pixels": nonfinite_pixels,
         "nonfinite_pairs_dropped": nonfinite_pairs,
+        "views_without_observations": [name for name, n in zip(cameras.names, view_pairs) if n == 0],
     })
     coverage_figure(tmp / "coverage.png", texels.resolution, texels.texel, views_per_texel,
                     f"{smk.wildcards.object} / {smk.wildcards.env} ({smk.wildcards.poses} poses)")

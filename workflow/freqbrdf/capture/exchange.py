@@ -54,6 +54,9 @@ CAMERA_CONVENTIONS = ("opengl", "opencv")
 _GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
 # World rotation of a Z-up capture into this project's Y-up frame: (x, y, z) -> (x, z, -y).
 Y_UP_FROM_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+# Written beside an imported split's cameras.json: the user's transforms file and, per
+# view name, the frame's file_path, so later stages name the user's files, not the copy.
+SOURCE_RECORD = "source.json"
 
 
 def blender_transforms(cameras: Cameras, split: str) -> dict:
@@ -319,7 +322,8 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
         Capture in the exchange layout.
     splits : dict
         ``{"train": dir, "test": dir}`` native directories to create. A test
-        split with per-view environments (``test_env/``) gets ``envmaps/{name}.exr``.
+        split with per-view environments (``test_env/``) gets ``envmaps/{name}.exr``;
+        each gets a :data:`SOURCE_RECORD` naming the user's files (:func:`capture_source`).
     mesh, envmap : Path
         Where to write the mesh (pipeline PLY layout, Y-up) and the environment map.
     up_axis : {"y", "z"}
@@ -375,10 +379,36 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
             if per_view_envs:
                 write_exr(out / "envmaps" / f"{name}.exr", checked_envmap(source / "test_env" / f"{Path(file_path).stem}.exr"))
         write_json(out / "cameras.json", cameras_to_json(cameras))
+        write_json(out / SOURCE_RECORD, {"transforms": str(transforms_file), "frames": dict(zip(cameras.names, paths))})
         counts[split] = len(cameras)
     write_ply(mesh, oriented)
     write_exr(envmap, train_env)
     return counts
+
+
+def capture_source(capture: str | os.PathLike, names: list[str] | tuple[str, ...]) -> tuple[str, list[str]]:
+    """A native capture as its user knows it, for messages.
+
+    Parameters
+    ----------
+    capture : path-like
+        A native capture directory (``cameras.json``, ``images/``, ``masks/``).
+    names : sequence of str
+        Its view names.
+
+    Returns
+    -------
+    source : str
+        The user's ``transforms_{split}.json`` for a capture :func:`import_capture`
+        wrote (its :data:`SOURCE_RECORD`), else the directory itself.
+    labels : list of str
+        Each view's frame ``file_path`` in that file, else its name.
+    """
+    record = Path(capture) / SOURCE_RECORD
+    if not record.is_file():
+        return str(capture), list(names)
+    content = read_json(record)
+    return str(content["transforms"]), [str(content["frames"].get(name, name)) for name in names]
 
 
 def import_textures(source: Path, out: dict[str, Path], resolution: int) -> None:

@@ -420,8 +420,10 @@ def observe(
     -------
     dict
         ``radiance`` (T, K, 3), ``weight`` (T, K), ``wo_local`` (T, K, 3),
-        ``incoming`` (T, K, 3), float32, and ``nonfinite`` (int): pairs dropped
-        because a pixel read was NaN or infinite.
+        ``incoming`` (T, K, 3), float32, ``nonfinite`` (int): pairs dropped
+        because a pixel read was NaN or infinite, and ``view_candidates`` (K,) int:
+        texels in front of each camera, inside its image and facing it (0: the
+        camera sees none of these texels).
     """
     geometry = view_geometry(texels, cameras, incoming_map, compiled=compiled)
     ki, ti = np.nonzero(geometry["candidate"].T)  # view-major: consecutive reads hit the same image
@@ -437,7 +439,8 @@ def observe(
     radiance[tb, kb] = 0.0
     weight[tb, kb] = 0.0
     return {"radiance": radiance, "weight": weight, "wo_local": geometry["wo_local"],
-            "incoming": geometry["incoming"], "nonfinite": int((~pairs["finite"][usable] & ~blocked).sum())}
+            "incoming": geometry["incoming"], "nonfinite": int((~pairs["finite"][usable] & ~blocked).sum()),
+            "view_candidates": np.bincount(ki, minlength=len(cameras))}
 
 
 def view_geometry(
@@ -543,33 +546,3 @@ def pair_observations(
     return {"usable": usable, "finite": finite, "radiance": radiance, "weight": weight, "origins": origins,
             "directions": geometry["wo"][ti, ki], "lengths": np.linalg.norm(cameras.centres[ki] - origins, axis=1)}
 
-
-def unusable_views(names: list[str] | tuple[str, ...], images: np.ndarray, coverage: np.ndarray) -> str:
-    """Why each view of a capture gives no observed pair, as one line grouped by reason.
-
-    Parameters
-    ----------
-    names : sequence of str
-        K view names.
-    images, coverage : ndarray, shape (K, H, W, 3) and (K, H, W)
-        The views (NaN/Inf allowed) and their masks in [0, 1].
-
-    Returns
-    -------
-    str
-        E.g. ``"every pixel is NaN/Inf: 000, 001; mask is empty: 002"``.
-    """
-    groups: dict[str, list[str]] = {}
-    for k, name in enumerate(names):
-        finite = np.isfinite(images[k]).all(axis=-1)
-        covered = coverage[k] > 0
-        if not finite.any():
-            why = "every pixel is NaN/Inf"
-        elif not covered.any():
-            why = "mask is empty"
-        elif not (finite & covered).any():
-            why = "no finite pixel inside the mask"
-        else:
-            why = "no texel seen inside the mask (poses, mesh and mask disagree)"
-        groups.setdefault(why, []).append(name)
-    return "; ".join(f"{why}: {', '.join(views)}" for why, views in groups.items())
