@@ -198,3 +198,72 @@ def test_with_defaults_fills_a_partial_config_in_place(tmp_path) -> None:
     assert config == {"seed": 1, "render": {"spp": 4, "resolution": 256}}
     with pytest.raises(ConfigError, match="missing.yaml: the embedded default config is missing"):
         with_defaults({}, tmp_path / "missing.yaml")
+
+
+def test_a_report_with_no_config_of_its_own_takes_the_last_runs():
+    from freqbrdf.config import reports_last_run
+
+    for argv in (["--report"], ["--report", "results/report.html"], ["--report=r.html", "-d", "w"]):
+        assert reports_last_run(["snakemake", *argv], {})
+    assert not reports_last_run(["snakemake", "--report", "r.html"], {"render": {"spp": 4}})  # --configfile/--config
+    assert not reports_last_run(["snakemake", "--cores", "2", "--report", "r.html", "--report-after-run"], {})
+    for argv in (["--cores", "2"], ["-n"], ["--reporter", "html"], ["--report-stylesheet", "s.css"], ["--unlock"]):
+        assert not reports_last_run(["snakemake", *argv], {})
+
+
+def test_the_recorded_run_config_replaces_the_config_whole(tmp_path):
+    from collections import OrderedDict
+
+    from freqbrdf.config import record_run_config, use_run_config
+
+    path = tmp_path / "results" / "run_config.yaml"
+    config = {"objects": ["sphere"], "render": {"spp": 4}}
+    assert not use_run_config(config, path) and config == {"objects": ["sphere"], "render": {"spp": 4}}
+    record_run_config({"objects": ["torus"], "render": OrderedDict(spp=8), "dir": tmp_path}, path)  # a JSON file's, a Path
+    assert use_run_config(config, path)
+    assert config == {"objects": ["torus"], "render": {"spp": 8}, "dir": str(tmp_path)}
+    assert [p.name for p in path.parent.iterdir()] == ["run_config.yaml"]  # written in place, nothing left beside
+    path.write_text("- not a mapping\n")
+    with pytest.raises(ConfigError, match="run_config.yaml: not a run's config"):
+        use_run_config(config, path)
+
+
+def test_snakemake_report_follows_the_recorded_config_unless_given_one(repo, tmp_path):
+    """A recorded run config with a wrong value shows which config the report's DAG is built
+    from: the recorded one for the plain command, the command line's when it brings one."""
+    from freqbrdf import layout
+    from freqbrdf.config import record_run_config
+
+    record_run_config({"render": {"spp": -4}}, tmp_path / layout.RUN_CONFIG)
+    command = [sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"), "-d", str(tmp_path),
+               "--report", str(tmp_path / "report.html")]
+    plain = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert plain.returncode != 0
+    assert f"Report of the last run here, under its config ({layout.RUN_CONFIG}" in plain.stdout + plain.stderr
+    assert "config key render.spp: -4 is less than the minimum of 1" in plain.stdout + plain.stderr
+    given = subprocess.run([*command, "--configfile", str(repo / "config" / "tiny.yaml")],
+                           capture_output=True, text=True, timeout=120)
+    assert "config key" not in given.stdout + given.stderr and "last run" not in given.stdout + given.stderr
+
+
+def test_a_missing_preset_stops_in_one_line_naming_it(repo, tmp_path):
+    """Snakemake 9.27.1 answers a --configfile that does not exist with a traceback (its loader
+    opens the file outside the try that would say "Config file ... not found.") before the
+    Snakefile runs; its last line names the file. `make run CONFIG=...` checks first: one line."""
+    import shutil
+
+    missing = tmp_path / "nope.yaml"
+    direct = subprocess.run([sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"),
+                             "-d", str(tmp_path), "-n", "--configfile", str(missing)],
+                            capture_output=True, text=True, timeout=120)
+    assert direct.returncode != 0 and str(missing) in (direct.stdout + direct.stderr).strip().splitlines()[-1]
+    if shutil.which("make") is None:
+        pytest.skip("no make")
+    made = subprocess.run(["make", "-n", "-C", str(repo), "run", f"CONFIG={missing}"], capture_output=True, text=True,
+                          timeout=60)
+    assert made.returncode != 0 and "snakemake" not in made.stdout
+    lines = made.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"CONFIG={missing}: no such file" in lines[0] and "config/tiny.yaml" in lines[0]
+    planned = subprocess.run(["make", "-n", "-C", str(repo), "run", "CONFIG=config/tiny.yaml"], capture_output=True,
+                             text=True, timeout=60)
+    assert planned.returncode == 0 and "snakemake --cores 2 --configfile config/tiny.yaml" in planned.stdout

@@ -3,7 +3,10 @@
 import numpy as np
 import pytest
 
-from freqbrdf.report.figures import GREY, atlas_masks, capture_maps_figure, error_scale, relight_figure
+from freqbrdf.methods import METHODS
+from freqbrdf.report.figures import (GREY, atlas_masks, capture_maps_figure, draw_capture_maps, error_scale,
+                                     relight_figure)
+from freqbrdf.report.plots import pyplot
 from freqbrdf.util.io import read_png
 from freqbrdf.report.metrics import parameter_mse
 from freqbrdf.report.relight_metrics import psnr_h
@@ -55,6 +58,37 @@ def test_maps_figure_draws_unobserved_texels_grey_in_the_entropy_map(tmp_path):
     grey = (np.abs(image - float(GREY) * 255) <= 1).all(axis=-1)  # 8-bit rounding
     # half of one map (about 190 x 95 pixels); the colour bars' grey steps are a few pixels wide
     assert int(grey.sum()) > 5000
+
+
+@pytest.mark.parametrize("with_truth", [True, False])
+def test_maps_figure_shows_every_value_scale_whole_in_its_first_two_rows(with_truth):
+    """The default run's 11 rows (ground truth and 10 methods) make a figure taller than the
+    report's window, whose bottom was cut off with the value scales under the last row: every
+    colour bar, with its tick labels and label, lies inside the canvas and above the second
+    row's bottom, within the top 800 pixels of the saved PNG (100 dpi)."""
+    rng = np.random.default_rng(3)
+    inside, seen = atlas_masks(16, np.arange(200), np.arange(200) % 4 > 0)
+    estimates = {m: _svbrdf(rng, 16) for m in list(METHODS)[:10]}
+    fig, _ = draw_capture_maps(_svbrdf(rng, 16) if with_truth else None, estimates, rng.random((16, 16)),
+                               inside, seen, "sphere captured under studio")
+    try:
+        renderer = fig.canvas.get_renderer()
+        fig.canvas.draw()
+        bars = [ax for ax in fig.axes if getattr(ax, "_colorbar", None) is not None]
+        assert len(bars) == (5 if with_truth else 4)  # 3 parameters, the entropy, and the error if scored
+        canvas = fig.bbox
+        second_row = next(ax for ax in fig.axes if ax.get_ylabel().startswith(METHODS[list(METHODS)[0]].label))
+        for bar in bars:
+            box = bar.get_tightbbox(renderer)
+            label = bar.get_xlabel() or bar.get_ylabel()
+            assert label and bar.get_xticklabels() + bar.get_yticklabels(), "a scale without its ticks or label"
+            assert (box.x0 >= canvas.x0 and box.x1 <= canvas.x1 and box.y0 >= canvas.y0 and box.y1 <= canvas.y1), \
+                f"the {label!r} scale is cut off: {box} outside {canvas}"
+            assert box.y0 >= second_row.get_window_extent(renderer).y0, f"the {label!r} scale is below the second row"
+            assert (canvas.y1 - box.y0) / fig.dpi * 100 < 800, f"the {label!r} scale is not near the top"
+        assert canvas.height / fig.dpi * 100 > 1900  # taller than the report screenshot's window
+    finally:
+        pyplot().close(fig)
 
 
 def test_relight_figure_prints_each_views_psnr_h(tmp_path):

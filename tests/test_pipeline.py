@@ -135,6 +135,9 @@ def test_exported_and_reimported_capture_gives_the_same_observations(run):
     for name in ("radiance", "weight", "wo_local", "incoming"):
         np.testing.assert_allclose(np.load(imported / f"{name}.npy"), np.load(native / f"{name}.npy"), rtol=1e-5, atol=1e-6)
     np.testing.assert_array_equal(np.load(imported / "texels.npz")["texel"], np.load(native / "texels.npz")["texel"])
+    # The copy's own map is as it was exported: no warning that it may be turned (issue 32).
+    log = (run / "results/logs/env_orientation/sphere_copy.log").read_text()
+    assert "may be wrongly oriented" not in log and "orientation as given is kept" in log
 
 
 def test_frequency_stage_outputs(run):
@@ -436,6 +439,25 @@ def test_report_builds_and_a_headless_browser_shows_tables_and_figures(repo, run
     assert _colour_count(images["workflow"], (216, 245, 208)) + _colour_count(images["workflow"], (248, 208, 208)) > 200
 
 
+def test_the_readme_report_command_reports_the_tiny_run_without_its_configfile(repo, run):
+    """README: `snakemake --report results/report.html`, in the run's directory and with no
+    --configfile, after a tiny run (issue 32: it built the default config's DAG and stopped
+    at "agreement.png marked for report but does not exist"): the run recorded its config on
+    success, and the report takes it."""
+    import yaml
+
+    from freqbrdf import layout
+
+    recorded = yaml.safe_load((run / layout.RUN_CONFIG).read_text())
+    assert recorded["objects"] == ["sphere"] and recorded["render"]["resolution"] == 32  # the tiny preset's
+    report = subprocess.run([sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"),
+                             "--report", layout.REPORT], cwd=run, capture_output=True, text=True, timeout=900)
+    assert report.returncode == 0, report.stderr[-4000:]
+    assert f"Report of the last run here, under its config ({layout.RUN_CONFIG}" in report.stdout + report.stderr
+    html = (run / layout.REPORT).read_text()
+    assert "results/figures/sphere/studio/gt/maps.png" in html and "agreement.png" in html
+
+
 def test_sfm_on_too_small_a_capture_fails_in_one_line_and_leaves_no_poses(repo, run):
     # 4 views of 32x32 pixels: COLMAP cannot register them, and says so.
     failed = snakemake(repo, run, "results/poses/sphere/studio/colmap", check=False)
@@ -587,8 +609,9 @@ def test_a_changed_file_inside_a_capture_is_re_imported(repo, orb):
 def test_a_capture_with_no_usable_pixel_stops_at_extraction_naming_the_views(repo, orb):
     failed = snakemake(repo, orb["workdir"], "results/observations/nans/nan_env/gt", base=orb["nans"], check=False)
     assert failed.returncode != 0
-    views = ", ".join(f"{k:04d}" for k in range(12))
-    assert f"no (texel, view) pair is observed; every pixel is NaN/Inf: {views}" in failed.stderr
+    # Named in the user's capture (its transforms_train.json and frames), not in the imported copy.
+    views = ", ".join(f"./train/{k:04d}" for k in range(12))
+    assert f"nan_capture/transforms_train.json: no (texel, view) pair is observed; every pixel is NaN/Inf: {views}" in failed.stderr
     assert not (orb["workdir"] / "results/observations/nans").exists()
 
 
@@ -790,3 +813,95 @@ def test_the_slurm_profile_scores_the_tiny_benchmark_as_a_local_run(repo, run, s
     ours = ours.merge(theirs[["object", "env", "poses", "method", "relight_env", "metric"]])
     assert len(theirs) > 30 and len(ours) == len(theirs)
     pd.testing.assert_frame_equal(theirs, ours, check_exact=False, rtol=1e-9, atol=1e-9)
+
+
+def _files(workdir) -> dict[str, tuple[int, int]]:
+    """Every file and folder under ``workdir`` but Snakemake's own ``.snakemake``: size and mtime."""
+    return {str(path.relative_to(workdir)): (path.stat().st_size, path.stat().st_mtime_ns)
+            for path in workdir.rglob("*") if ".snakemake" not in path.relative_to(workdir).parts}
+
+
+def test_a_second_run_in_the_same_directory_stops_in_one_line_and_leaves_the_first_alone(repo, tmp_path):
+    """Snakemake 9.27.1 removes .snakemake/locks whenever a run exits (issue 32), so the workflow
+    holds a lock of its own (freqbrdf.util.runlock) while it executes jobs: a second run with other
+    targets, then a plain one, stop in one line naming the first, which completes untouched."""
+    import contextlib
+    import os
+    import signal
+    import time
+
+    from freqbrdf.util.runlock import LOCK_NAME, read_holder
+
+    workdir = tmp_path / "run"
+    lock = workdir / ".snakemake" / LOCK_NAME
+    command = [sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"), "-d", str(workdir),
+               "--cores", "2", "results/captures/sphere/studio/train",
+               "--configfile", str(repo / "config" / "tiny.yaml")]
+    with open(tmp_path / "first.log", "w") as log:
+        # its own process group, so that it and its jobs can be paused together
+        first = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while read_holder(lock).get("pid") != first.pid:
+            assert first.poll() is None and time.monotonic() < deadline, (tmp_path / "first.log").read_text()[-4000:]
+            time.sleep(0.05)
+        # Paused while it holds the lock: the later runs meet it mid-run whatever the machine's speed.
+        os.killpg(first.pid, signal.SIGSTOP)
+        started = read_holder(lock)["started"]
+        expected = (f"Error: another FreqBRDF run is executing in {workdir.resolve()} (pid {first.pid}, "
+                    f"started {started}): wait for it to end, or stop it; its lock (.snakemake/{LOCK_NAME}) frees "
+                    "itself when that process exits, no --unlock needed")
+        before = _files(workdir)
+        for targets in (["results/envs/museum.exr"], []):  # other targets, then a plain run
+            second = snakemake(repo, workdir, *targets, check=False)
+            assert second.returncode == 1
+            assert [line for line in second.stderr.splitlines() if "FreqBRDF run" in line] == [expected]
+            assert second.stderr.rstrip().endswith(expected)
+        # A dry run is neither refused nor takes the lock.
+        assert snakemake(repo, workdir, "-n", "results/envs/museum.exr").returncode == 0
+        assert read_holder(lock)["pid"] == first.pid
+        # the first run is still alive, and no later run wrote anything
+        assert first.poll() is None and _files(workdir) == before
+        assert not (workdir / "results/envs/museum.exr").exists()
+    except BaseException:
+        os.killpg(first.pid, signal.SIGKILL)  # and its jobs
+        raise
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(first.pid, signal.SIGCONT)
+        first.wait(timeout=600)
+    assert first.returncode == 0, (tmp_path / "first.log").read_text()[-4000:]
+    capture = workdir / "results/captures/sphere/studio/train"
+    assert len(cameras_from_json(read_json(capture / "cameras.json"))) == 4
+    # The lock died with the first run: the next run goes ahead, no --unlock needed.
+    snakemake(repo, workdir, "results/envs/museum.exr")
+    assert (workdir / "results/envs/museum.exr").is_file()
+
+
+def test_the_run_lock_dies_with_its_process_even_killed(tmp_path):
+    """freqbrdf.util.runlock: a second process is refused while the first holds the lock, and takes
+    it once the first is SIGKILLed (flock locks die with their process: no --unlock)."""
+    import signal
+    import time
+
+    from freqbrdf.util.runlock import LOCK_NAME, read_holder
+
+    def holder(*code: str) -> list[str]:
+        return [sys.executable, "-c", "import time; from freqbrdf.util.runlock import hold_run_lock; "
+                f"hold_run_lock({str(tmp_path)!r}); " + "; ".join(code)]
+
+    first = subprocess.Popen(holder("time.sleep(600)"))
+    try:
+        deadline = time.monotonic() + 60
+        while read_holder(tmp_path / LOCK_NAME).get("pid") != first.pid:
+            assert first.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        refused = subprocess.run(holder(), capture_output=True, text=True, timeout=60)
+        assert refused.returncode != 0 and f"(pid {first.pid}, started " in refused.stderr
+        assert "RunLockError: another FreqBRDF run is executing in" in refused.stderr
+    finally:
+        first.send_signal(signal.SIGKILL)
+        first.wait(timeout=60)
+    taken = subprocess.run(holder("import os", "print(os.getpid())"), capture_output=True, text=True, timeout=60)
+    assert taken.returncode == 0, taken.stderr
+    assert read_holder(tmp_path / LOCK_NAME)["pid"] == int(taken.stdout)  # its record replaced the killed one's

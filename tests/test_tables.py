@@ -3,6 +3,7 @@ the paper's numbers sit beside ours, and each claim flips when the data contradi
 
 import dataclasses
 import io
+import re
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -488,10 +489,32 @@ def test_run_facts_state_the_configuration_with_display_names():
 
 def test_headline_table_means_over_captures_in_registry_order():
     head = headline_table(full_run({("freq", "mse_average"): 0.07}))
-    assert list(head.method[:3]) == ["spectrum", "freq", "freq_noshadow"]  # registry order, not the rows'
-    assert cell(head, "Parameter MSE", method="freq") == "0.070" and cell(head, "PSNR-H", method="mitsuba") == "26.00"
-    assert cell(head, "Time", method="mitsuba") == "100 s" and cell(head, "Method", method="freq") == METHODS["freq"].label
-    assert cell(head, "PSNR-H", method="rh2001") == MISSING  # not relit in this table
+    names = {m: f"{METHODS[m].label} ({m})" for m in METHODS}
+    assert list(head.Method[:3]) == [names[m] for m in ("spectrum", "freq", "freq_noshadow")]  # registry order
+    assert cell(head, "Parameter MSE", Method=names["freq"]) == "0.070"
+    assert cell(head, "PSNR-H", Method=names["mitsuba"]) == "26.00" and cell(head, "Time", Method=names["mitsuba"]) == "100 s"
+    assert cell(head, "PSNR-H", Method=names["rh2001"]) == MISSING  # not relit in this table
+
+
+def test_headline_table_has_one_method_column_and_no_empty_row():
+    """The landing page's table read ``Method | method`` (display and config name side by side)
+    and ended in an empty row: the captures' own rows (empty method) taken for a method's."""
+    df = full_run()
+    assert (df.method == "").any()  # the entropy agreement's rows
+    head = headline_table(df)
+    assert list(head.columns) == ["Method", "Parameter MSE", "PSNR-H", "Time"]
+    assert len(head) == df.method[df.method != ""].nunique()
+    assert all(head.Method.str.len() > 0) and not head.Method.str.startswith(" (").any()
+    page = run_summary_html(run_facts(RUN), claims(df, PAPER), head)
+    table = page[page.index("Headline numbers"):]
+    table = table[: table.index("</table>")]
+    headers = re.findall(r"<th[^>]*>([^<]*)</th>", table)
+    assert [h.lower() for h in headers].count("method") == 1, headers
+    rows = re.findall(r"<tr>(.*?)</tr>", table, re.S)[1:]  # after the header row
+    assert len(rows) == len(head)
+    for row in rows:
+        cells = re.findall(r"<td[^>]*>([^<]*)</td>", row)
+        assert cells[0].strip() and any(c.strip() not in ("", MISSING) for c in cells[1:]), row
 
 
 def test_run_summary_counts_the_verdicts_and_scopes_its_style():

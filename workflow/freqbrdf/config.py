@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import zlib
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +41,67 @@ def with_defaults(config: dict[str, Any], default: str | Path) -> None:
     merged = merge_config(yaml.safe_load(path.read_text()) or {}, config)
     config.clear()
     config.update(merged)
+
+
+def reports_last_run(argv: Sequence[str], overwrite_config: Mapping[str, Any]) -> bool:
+    """Whether this invocation only builds a report and brings no config of its own.
+
+    ``snakemake --report [FILE]`` (not ``--report-after-run``, which runs the workflow
+    first) with no ``--configfile`` or ``--config`` (Snakemake's
+    ``workflow.config_settings.overwrite_config``, empty then; a profile's count too).
+    Such a report is of the run already made in the directory, so the Snakefile then
+    takes that run's config (`use_run_config`): without it, a report after a run of a
+    preset (``--configfile config/tiny.yaml``) would look for the default config's
+    outputs and stop at the first (``... marked for report but does not exist``).
+
+    Parameters
+    ----------
+    argv : sequence of str
+        The command line (``sys.argv``): Snakemake tells a Snakefile nothing else of a
+        report, whose DAG is built after the Snakefile has run.
+    overwrite_config : mapping
+        The values given on the command line or in a profile, from files or not.
+    """
+    args = list(argv[1:])
+    report = any(a == "--report" or a.startswith("--report=") for a in args)
+    return report and "--report-after-run" not in args and not overwrite_config
+
+
+def record_run_config(config: Mapping[str, Any], path: str | Path) -> None:
+    """Write ``config`` (the run's, complete) to the YAML file ``path``, atomically.
+
+    The Snakefile's ``onsuccess`` writes it (:data:`freqbrdf.layout.RUN_CONFIG`) for
+    `reports_last_run` to find.
+    """
+    import json
+    import os
+
+    import yaml
+
+    plain = json.loads(json.dumps(config, default=str))  # OrderedDicts (JSON config files) and Paths
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text("# The config of the last successful run in this directory, written when it ended;\n"
+                   "# `snakemake --report` without --configfile or --config reports that run under it.\n"
+                   + yaml.safe_dump(plain, sort_keys=False))
+    tmp.replace(path)
+
+
+def use_run_config(config: dict[str, Any], path: str | Path) -> bool:
+    """Replace ``config`` in place by the recorded run config at ``path`` (`record_run_config`),
+    if there is one; whether there was."""
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        return False
+    recorded = yaml.safe_load(path.read_text())
+    if not isinstance(recorded, dict):
+        raise ConfigError(f"{path}: not a run's config (a mapping); remove it, or give --configfile")
+    config.clear()
+    config.update(recorded)
+    return True
 
 
 def _key_path(path) -> str:

@@ -66,6 +66,9 @@ TRUTH = "truth"  # the ground truth's name beside the methods': its .glb file, g
 TRUTH_GLTF = "results/gltf/{object}/" + TRUTH + ".glb"
 VIEWER = "results/viewer/{object}/{env}/{poses}/viewer.html"
 REPORT = "results/report.html"  # snakemake --report's target
+# The config of the last successful run here (the Snakefile's onsuccess), which a plain
+# `snakemake --report` reports (freqbrdf.config.reports_last_run)
+RUN_CONFIG = "results/run_config.yaml"
 REPORT_SCREENSHOTS = "results/report_screenshots"
 
 # What every job leaves beside its outputs

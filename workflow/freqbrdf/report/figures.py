@@ -22,6 +22,7 @@ from freqbrdf.report.tables.display import method_label  # the registry's displa
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
+    from matplotlib.figure import Figure
 
 GREY = "0.85"  # outside the UV atlas (or not scored)
 
@@ -71,10 +72,14 @@ def capture_maps_figure(
     """Ground truth against each method's maps, with our entropy and each method's error.
 
     One row per SVBRDF (ground truth first, methods by display name), columns
-    base colour (sRGB), roughness, metallic (grey, 0 black to 1 white), each
-    with its value scale below, and a fourth map: our entropy (Turbo, 0 certain
-    to 1 uncertain) in the ground-truth row, the per-texel squared parameter
-    error (mean of the three groups, one shared scale) in every method's row.
+    base colour (sRGB), roughness, metallic (grey, 0 black to 1 white), and a
+    fourth map: our entropy (Turbo, 0 certain to 1 uncertain) in the
+    ground-truth row, the per-texel squared parameter error (mean of the three
+    groups, one shared scale) in every method's row. Every value scale sits in
+    the first two rows (the parameters' under the ground truth, the entropy's
+    beside it, the error's beside the first method's map), so a window that
+    shows the figure's top shows them all, however many methods follow (the
+    default run's 11 rows, 2,000 pixels, are taller than the report's window).
     Grey: outside the atlas; in the entropy and error maps also never observed
     (an unobserved texel's entropy is the maximum by definition, and its error
     is not scored).
@@ -101,6 +106,20 @@ def capture_maps_figure(
         Method name -> parameter MSE over observed texels (empty without ground
         truth), the numbers printed in the row labels.
     """
+    fig, mse = draw_capture_maps(truth, estimates, entropy, inside, seen, title)
+    save_figure(fig, path, dpi=100)
+    return mse
+
+
+def draw_capture_maps(
+    truth: Mapping[str, np.ndarray] | None,
+    estimates: Mapping[str, Mapping[str, np.ndarray]],
+    entropy: np.ndarray,
+    inside: np.ndarray,
+    seen: np.ndarray,
+    title: str,
+) -> tuple[Figure, dict[str, float]]:
+    """The figure of :func:`capture_maps_figure`, unsaved, and its MSE per method; the caller closes it."""
     plt = pyplot()
     errors = {m: parameter_error_map(truth, est) for m, est in estimates.items()} if truth is not None else {}
     vmax = error_scale(errors, seen)
@@ -134,10 +153,11 @@ def capture_maps_figure(
     if shown_entropy is not None:
         fig.colorbar(shown_entropy, ax=axes[0, 3], shrink=0.9, label="entropy")
     if shown_error is not None:
-        fig.colorbar(shown_error, ax=axes[1:, 3].tolist(), shrink=0.5, label="squared error")
+        # one shared scale for every method's row, as long as one row and level with the first
+        fig.colorbar(shown_error, ax=axes[1:, 3].tolist(), shrink=0.9 / (len(rows) - 1), anchor=(0.0, 1.0),
+                     panchor=(1.0, 1.0), label="squared error")
     fig.suptitle(title, fontsize=10)
-    save_figure(fig, path, dpi=100)
-    return mse
+    return fig, mse
 
 
 def _title_columns(axes: np.ndarray, titles: Sequence[str]) -> None:
@@ -150,18 +170,20 @@ def _title_columns(axes: np.ndarray, titles: Sequence[str]) -> None:
 
 
 def _parameter_scales(fig, axes: np.ndarray, grey_map) -> None:
-    """One value scale below each parameter column (0-2) of a maps grid: base colour per channel
-    (linear value, drawn sRGB-encoded as the maps are), roughness and metallic as drawn."""
+    """One value scale for each parameter column (0-2) of a maps grid, under its first row (the
+    ground truth): base colour per channel (linear value, drawn sRGB-encoded as the maps are),
+    roughness and metallic as drawn. Under the first row, not the last: a figure taller than
+    the window then still shows them (they were cut off at the bottom of the report's view)."""
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import ListedColormap, Normalize
 
     unit = Normalize(0.0, 1.0)
     base_scale = ListedColormap(np.repeat(to_srgb(np.linspace(0.0, 1.0, 256))[:, None], 3, axis=1))
-    for c, (cmap, label) in enumerate(((base_scale, "base colour, each channel (linear)"),
+    for c, (cmap, label) in enumerate(((base_scale, "base colour (linear)"),
                                        (grey_map, "roughness"), (grey_map, "metallic"))):
-        # the space a bar takes is a fraction of its column's height: about one sixth of a row
-        fig.colorbar(ScalarMappable(unit, cmap), ax=axes[:, c].tolist(), location="bottom", shrink=0.9,
-                     aspect=15, fraction=0.15 / axes.shape[0], label=label)
+        # the space a bar takes is a fraction of the row's height
+        fig.colorbar(ScalarMappable(unit, cmap), ax=axes[0, c], location="bottom", shrink=0.9,
+                     aspect=15, fraction=0.15, label=label)
 
 
 def _draw_svbrdf(axes, svbrdf: Mapping[str, np.ndarray] | None, inside: np.ndarray, grey_map) -> None:

@@ -325,10 +325,12 @@ def headline_table(df: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     DataFrame of str
-        ``Method, method, Parameter MSE, PSNR-H, Time``: average parameter MSE
-        (observed texels), PSNR-H (dB, held-out relighting) and time per capture.
+        ``Method, Parameter MSE, PSNR-H, Time``: the display name with the config name
+        (``Ours (freq)``, as the summary lists the methods), average parameter MSE
+        (observed texels), PSNR-H (dB, held-out relighting) and time per capture. The
+        captures' own rows (empty method: the entropy agreement) are no method's.
     """
-    rows = [{"Method": method_label(m), "method": m, "Parameter MSE": fmt(mean_metric(df, m, "mse_average")),
+    rows = [{"Method": f"{method_label(m)} ({m})", "Parameter MSE": fmt(mean_metric(df, m, "mse_average")),
              "PSNR-H": fmt(mean_metric(df, m, "psnr_h"), 2), "Time": fmt_time(method_time(df, m))}
-            for m in ordered_methods(df.method)]
-    return pd.DataFrame(rows, columns=["Method", "method", "Parameter MSE", "PSNR-H", "Time"])
+            for m in ordered_methods(df.method[df.method != ""])]
+    return pd.DataFrame(rows, columns=["Method", "Parameter MSE", "PSNR-H", "Time"])
