@@ -655,3 +655,53 @@ def test_partial_refit_matches_a_full_fit_of_the_moved_texels(small: dict) -> No
     flat = terms(small, problem, r1, True)
     refit_light(flat, r2, problem, small["light"], moved, workers=1)
     np.testing.assert_allclose(flat, terms(small, problem, r2, True), rtol=1e-5, atol=1e-6)
+
+
+FRESH_OR_CACHED = """
+import hashlib, json, sys
+import numpy as np
+import yaml
+from freqbrdf.estimate.optimise.model import estimate_light
+from freqbrdf.estimate.optimise.settings import OptimiseSettings
+from freqbrdf.estimate.optimise.solve import optimise
+from freqbrdf.methods import methods_of
+from freqbrdf.studies.recovery_capture import capture_observations, oracle_capture
+
+env = np.random.default_rng(3).uniform(0.05, 1.0, (32, 64, 3))
+env[6:8, 20:22] = 400.0  # a point source
+capture, _ = oracle_capture(env, 7)
+obs = capture_observations(capture)
+config = yaml.safe_load(open(sys.argv[1]))["optimise"]
+out = {}
+for solver, steps in (("adam", {"iterations": 20}), ("lm", {"sweeps": 3})):
+    for method in methods_of("optimise_svbrdf"):
+        light, e = estimate_light(env, obs, method, 10, config["point_sources"])
+        settings = OptimiseSettings.from_config(config | {"solver": solver, "lmax": 10} | steps, workers=2)
+        params, curve = optimise(obs, e, light, method=method, settings=settings)
+        data = b"".join(np.ascontiguousarray(params[k]).tobytes() for k in sorted(params)) + curve.tobytes()
+        out[f"{method}/{solver}"] = hashlib.sha1(data).hexdigest()
+print(json.dumps(out))
+"""
+
+
+def test_every_method_gives_the_same_bits_whether_its_kernels_were_compiled_or_loaded(tmp_path) -> None:
+    """A job that compiles the kernels and one that loads them from numba's cache compute the same
+    estimate, bit for bit, for every method and both solvers (issue 32: with fast-math reassociation
+    they did not, so a fresh run's numbers depended on which of its jobs compiled first)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    env = os.environ | {"NUMBA_CACHE_DIR": str(tmp_path / "numba"), "PYTHONPATH": str(repo / "workflow")}
+    runs = []
+    for _ in range(2):  # the first compiles every kernel into the empty cache, the second loads them
+        done = subprocess.run([sys.executable, "-c", FRESH_OR_CACHED, str(repo / "config" / "config.yaml")],
+                              capture_output=True, text=True, env=env, timeout=600)
+        assert done.returncode == 0, done.stderr[-3000:]
+        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    assert any((tmp_path / "numba").rglob("*.nbc"))  # the second run had a cache to load
+    assert len(runs[0]) == 2 * len(OPTIMISER_METHODS)
+    assert runs[0] == runs[1]
