@@ -74,18 +74,16 @@ def record_run_config(config: Mapping[str, Any], path: str | Path) -> None:
     `reports_last_run` to find.
     """
     import json
-    import os
 
     import yaml
 
+    from freqbrdf.util.io import atomic_path
+
     plain = json.loads(json.dumps(config, default=str))  # OrderedDicts (JSON config files) and Paths
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text("# The config of the last successful run in this directory, written when it ended;\n"
-                   "# `snakemake --report` without --configfile or --config reports that run under it.\n"
-                   + yaml.safe_dump(plain, sort_keys=False))
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text("# The config of the last successful run in this directory, written when it ended;\n"
+                       "# `snakemake --report` without --configfile or --config reports that run under it.\n"
+                       + yaml.safe_dump(plain, sort_keys=False))
 
 
 def use_run_config(config: dict[str, Any], path: str | Path) -> bool:
