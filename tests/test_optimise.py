@@ -430,12 +430,29 @@ def test_optimisation_decreases_the_loss_and_respects_bounds(capture: tuple[dict
     est, curve = run(scene, radiance, "freq", iterations=150, lr=0.1, grid_start=False)
     x = pack_params(est, 200)  # raises if outside [0, 1]
     assert ((x == 0.0) | (x == 1.0)).any()
-    assert curve.shape == (150,)
+    assert curve.shape == (151,)  # the start of every step, then the end
     # falls until it reaches the step's noise floor (refits included), then stays there
-    windows = curve.reshape(6, 25).mean(axis=1)
+    windows = curve[:150].reshape(6, 25).mean(axis=1)
     assert np.all(windows[:2] > windows[1:3])
     assert windows[-1] < 1.1 * windows[2:].min()
     assert curve[-1] < 0.1 * curve[0]
+
+
+def test_adam_returns_its_best_iterate_so_it_never_ends_above_its_start(capture: tuple[dict, dict]) -> None:
+    """Started at the noise-free optimum with a large step, Adam can only wander off it: the
+    estimate must be the start itself, bit for bit, and the curve shows the wander. ``rh2001``
+    needs no refit, so every value of its curve is the same objective."""
+    scene, truth = capture
+    radiance = render(scene, truth, "rh2001")
+    est, curve = run(scene, radiance, "rh2001", init=truth, iterations=20, lr=0.05, tv_weight=0.0)
+    assert curve.shape == (21,)
+    assert int(np.argmin(curve)) == 0 and curve[-1] > 10 * curve[0]  # it did wander
+    for key in truth:
+        np.testing.assert_array_equal(est[key], np.asarray(truth[key], dtype=np.float64))
+    # from 0.5 the best iterate is the last one, and the curve's last value is its objective
+    est, curve = run(scene, radiance, "rh2001", iterations=20, lr=0.05, tv_weight=0.0, grid_start=False)
+    assert int(np.argmin(curve)) == 20
+    assert not np.allclose(est["roughness"], 0.5)
 
 
 def test_lm_sweep_is_block_coordinate_descent(small: dict) -> None:

@@ -164,3 +164,35 @@ def test_posterior_is_the_likelihood_of_the_spectrum_search():
     np.testing.assert_array_equal(p.argmax(axis=2), search.ks_index * 4 + search.alpha_index)
     entropy = -(p * np.log(np.maximum(p, 1e-300))).sum(axis=2) / np.log(16)
     np.testing.assert_allclose(entropy, search.entropy_rgb, atol=1e-5)
+
+
+_FRESH_OR_CACHED = """
+import hashlib, sys
+import numpy as np
+from freqbrdf.studies.expected_entropy import expected_entropy
+rng = np.random.default_rng(4)
+filters = rng.uniform(0.0, 1.0, (64, 6))
+s2 = (rng.uniform(0.0, 0.3, (300, 6)) * np.exp(-0.5 * np.arange(6))) ** 2
+posterior = rng.dirichlet(np.full(64, 0.3), size=300)
+print(hashlib.sha1(expected_entropy(s2, posterior, np.arange(300), filters, 0.01).tobytes()).hexdigest())
+"""
+
+
+def test_the_kernel_gives_the_same_bits_whether_compiled_or_loaded_from_the_cache(tmp_path):
+    """As the estimators' kernels (tests/test_optimise.py): view selection ranks candidates by these
+    values, so a job that compiled the kernel and one that loaded it must agree bit for bit."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = os.environ | {"NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+                        "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "workflow")}
+    digests = []
+    for _ in range(2):  # the first compiles into the empty cache, the second loads
+        done = subprocess.run([sys.executable, "-c", _FRESH_OR_CACHED], capture_output=True, text=True, env=env,
+                              timeout=300)
+        assert done.returncode == 0, done.stderr[-3000:]
+        digests.append(done.stdout.strip().splitlines()[-1])
+    assert any((tmp_path / "numba").rglob("*.nbc"))
+    assert digests[0] == digests[1]

@@ -99,8 +99,9 @@ def optimise(
     loss_curve : numpy.ndarray
         The objective at the start of each Adam iteration or LM sweep
         (after that iteration's refit, if any, so it may jump at refits);
-        an LM run that meets ``sweep_tolerance`` early has fewer entries
-        than ``sweeps``.
+        Adam's has one more, after its last step, and returns the iterate
+        of lowest objective; an LM run that meets ``sweep_tolerance`` early
+        has fewer entries than ``sweeps``.
     """
     method_terms(method)  # a bad method is named before any work
     if not isinstance(settings, OptimiseSettings):
@@ -194,20 +195,35 @@ def _descend_lm(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings)
 
 def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) -> tuple[np.ndarray, np.ndarray]:
     """Adam from ``xp`` (internal order), refitting the shadowed light every ``refit_every`` steps;
-    returns the parameters and the loss at the start of each iteration."""
+    returns the iterate of lowest objective and the objective at the start of each iteration and
+    after the last (``iterations + 1`` values).
+
+    Adam moves every parameter by about ``lr`` a step however small its gradient, so from a start
+    already near the optimum (the grid start on a small capture) its iterates can wander above
+    where they began; keeping the best iterate bounds the result by the start. Objectives after a
+    refit are of the refitted light, so the choice compares each iterate under the light it was
+    scored with.
+    """
     xp = xp.copy()
     xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     if not settings.iterations:
         return xp, np.empty(0)
     m1 = np.zeros_like(xp)
     m2 = np.zeros_like(xp)
-    curve = np.empty(settings.iterations)
+    curve = np.empty(settings.iterations + 1)
     set_threads(settings.workers)
     light = _RefittedTerms(xp, model, settings)
+    best, best_loss = xp, np.inf
     for it in range(settings.iterations):
         if it and it % settings.refit_every == 0:
             light.refit(xp)
         curve[it], grad = model.objective(xp, light.terms, settings.tv_weight)
+        if curve[it] < best_loss:
+            best, best_loss = xp, curve[it]
+        # adam_step returns a new array, so ``best`` is never written through
         xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
         xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
-    return xp, curve
+    curve[-1] = model.objective(xp, light.terms, settings.tv_weight)[0]
+    if curve[-1] < best_loss:
+        best = xp
+    return best, curve
