@@ -35,9 +35,12 @@ def main(smk, log):
         log.info("%d point sources outside the SH light (optimise.point_sources: %s), %.1f%% of the map's power",
                  len(light.sources.power), opt["point_sources"], 100.0 * points / (points + light.weighted_radiance.sum()))
     params, curve = optimise(obs, e, light, init=init, method=smk.wildcards.method, settings=settings)
-    log.info("%s: %d %s in %.1f s, loss %.4g -> %.4g", smk.wildcards.method, len(curve),
-             "Adam steps" if settings.solver == "adam" else "LM sweeps",
-             time.perf_counter() - start, curve[0], curve[-1])
+    if settings.solver == "adam":  # it keeps its iterate of lowest loss
+        done = f"{settings.iterations} Adam steps, loss {curve[0]:.4g} -> {curve[-1]:.4g}, kept {curve.min():.4g} " \
+               f"(after {int(np.argmin(curve))} steps)"
+    else:
+        done = f"{len(curve)} LM sweeps, loss {curve[0]:.4g} -> {curve[-1]:.4g} (at the last sweep's start)"
+    log.info("%s: %s in %.1f s", smk.wildcards.method, done, time.perf_counter() - start)
 
     with atomic_directory(smk.output.estimate) as tmp:
         write_svbrdf(tmp, Svbrdf.from_texels(texels.resolution, texels.texel, params, obs.observed))
