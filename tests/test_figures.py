@@ -9,7 +9,7 @@ from freqbrdf.report.figures import (GREY, atlas_masks, capture_maps_figure, dra
 from freqbrdf.report.plots import pyplot
 from freqbrdf.util.io import read_png
 from freqbrdf.report.metrics import parameter_mse
-from freqbrdf.report.relight_metrics import psnr_h
+from freqbrdf.report.relight_metrics import HdrScoring, psnr_h
 
 
 def _svbrdf(rng, r=8):
@@ -97,10 +97,11 @@ def test_relight_figure_prints_each_views_psnr_h(tmp_path):
     mask[4:12, 3:14] = True
     references = {"museum": (rng.random((16, 16, 3)), mask), "sunny": (4 * rng.random((16, 16, 3)), mask)}
     relit = {env: {"freq": rng.random((16, 16, 3)), "rh2001": rng.random((16, 16, 3))} for env in references}
-    scores = relight_figure(tmp_path / "r.png", references, relit, "t", clip=2.0, normalise=False)
+    scores = relight_figure(tmp_path / "r.png", references, relit, "t", HdrScoring(clip=2.0, normalise=False))
     assert set(scores) == {(env, m) for env in references for m in ("freq", "rh2001")}
     for (env, method), score in scores.items():
-        assert score == pytest.approx(psnr_h(relit[env][method], references[env][0], mask, clip=2.0, normalise=False))
+        assert score == pytest.approx(psnr_h(relit[env][method], references[env][0], mask,
+                                              HdrScoring(clip=2.0, normalise=False)))
     assert len(set(scores.values())) == 4  # each view its own number, not one per method
     # two rows (renders, error images) per environment
     assert read_png(tmp_path / "r.png").shape[0] > 2 * 2 * 150

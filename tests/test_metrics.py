@@ -41,14 +41,18 @@ from freqbrdf.util.colour import to_srgb  # noqa: E402
 from freqbrdf.report.metrics import parameter_error_map  # noqa: E402
 from freqbrdf.report.relight_metrics import (  # noqa: E402
     channel_scale,
+    HdrScoring,
     hdr_pair,
     image_mse,
     relight_scores,
+    relight_view_scores,
     scored_pixels,
     psnr_h,
     psnr_l,
     ssim,
 )
+
+RAW = HdrScoring(normalise=False)  # Stanford-ORB's PSNR-H without its exposure normalisation
 
 
 def _scene(size: int = 64, seed: int = 0):
@@ -76,7 +80,7 @@ def test_psnr_matches_the_analytic_value_of_a_known_noise_level():
     expected = -10 * np.log10(sigma**2)  # 40 dB at peak 1
     assert image_mse(noisy, ref, mask) == pytest.approx(sigma**2, rel=0.02)
     # reference values stay inside [0, 1] and [0, 4]: the clips do not act
-    assert psnr_h(noisy, ref, mask, normalise=False) == pytest.approx(expected, abs=0.1)
+    assert psnr_h(noisy, ref, mask, RAW) == pytest.approx(expected, abs=0.1)
     # normalisation multiplies both images by g = sum(srgb(ref)) / sum(ref), the MSE by g^2
     gain = to_srgb(ref[mask]).sum() / ref[mask].sum()
     assert psnr_h(noisy, ref, mask) == pytest.approx(expected - 20 * np.log10(gain), abs=0.1)
@@ -98,8 +102,8 @@ def test_psnr_h_clips_both_images_at_the_clip_value():
     assert low.sum() == (~low).sum()
     pred[bright] = np.where(low[:, None], 5.0, 5.0 + np.sqrt(50.0))
     np.testing.assert_allclose(channel_scale(pred, ref, mask), 1.0, rtol=1e-12)
-    assert psnr_h(pred, ref, mask, normalise=False) > 60  # every difference is above 4: clipped away
-    assert psnr_h(pred, ref, mask, clip=20.0, normalise=False) < 20
+    assert psnr_h(pred, ref, mask, RAW) > 60  # every difference is above 4: clipped away
+    assert psnr_h(pred, ref, mask, HdrScoring(clip=20.0, normalise=False)) < 20
 
 
 def test_psnr_and_ssim_are_invariant_to_a_per_channel_scale_of_the_prediction():
@@ -124,7 +128,7 @@ def test_pixels_outside_the_mask_do_not_matter():
     # and an error inside the mask does
     worse = pred.copy()
     worse[mask] += 0.1 * np.random.default_rng(5).normal(size=(mask.sum(), 3))
-    assert psnr_h(worse, ref, mask, normalise=False) < psnr_h(pred, ref, mask, normalise=False)
+    assert psnr_h(worse, ref, mask, RAW) < psnr_h(pred, ref, mask, RAW)
     assert ssim(worse, ref, mask) < ssim(pred, ref, mask)
 
 
@@ -162,9 +166,9 @@ def test_relight_scores_average_the_views():
     ref, mask = _scene()
     rng = np.random.default_rng(7)
     preds = [ref + sigma * rng.normal(size=ref.shape) for sigma in (0.01, 0.03)]
-    scores = relight_scores(preds, [ref, ref], [mask, mask], clip=4.0, normalise=False)
+    scores = relight_scores(preds, [ref, ref], [mask, mask], RAW)
     assert set(scores) == {"psnr_h", "psnr_l", "ssim", "mse"}
-    assert scores["psnr_h"] == pytest.approx(np.mean([psnr_h(p, ref, mask, normalise=False) for p in preds]))
+    assert scores["psnr_h"] == pytest.approx(np.mean([psnr_h(p, ref, mask, RAW) for p in preds]))
     assert scores["ssim"] == pytest.approx(np.mean([ssim(p, ref, mask) for p in preds]))
     assert scores["mse"] == pytest.approx((0.01**2 + 0.03**2) / 2, rel=0.05)
     with pytest.raises(ValueError, match="2 predictions, 1 references, 1 masks"):
@@ -367,10 +371,50 @@ def test_hdr_pair_is_what_psnr_h_averages():
     pred, ref = 3 * rng.random((12, 10, 3)), 3 * rng.random((12, 10, 3))
     mask = rng.random((12, 10)) > 0.3
     for normalise in (True, False):
-        p, r = hdr_pair(pred, ref, mask, clip=1.5, normalise=normalise)
+        scoring = HdrScoring(clip=1.5, normalise=normalise)
+        p, r = hdr_pair(pred, ref, mask, scoring)
         assert p.max() <= 1.5 and r.max() <= 1.5
         mse = ((p - r) ** 2).mean(axis=2)[mask].mean()
-        assert -10 * np.log10(mse) == pytest.approx(psnr_h(pred, ref, mask, clip=1.5, normalise=normalise))
+        assert -10 * np.log10(mse) == pytest.approx(psnr_h(pred, ref, mask, scoring))
+
+
+def test_the_scale_fitted_on_clipped_values_is_not_set_by_a_highlight():
+    """A sun's highlight, far above the clip, drags Stanford-ORB's scale (fitted before clipping) and
+    darkens every pixel; the scale fitted on the clipped images does not see it; none fits nothing."""
+    ref, mask = _scene()
+    hot = mask & (np.arange(mask.shape[0])[:, None] < mask.shape[0] // 2 - 4) & (np.arange(mask.shape[1]) < 18)
+    assert 0 < hot.sum() < 0.05 * mask.sum()
+    ref = ref.copy()
+    ref[hot] = 200.0
+    pred = ref.copy()
+    pred[hot] = 120.0  # the highlight a little dim, every other pixel exact
+    orb = channel_scale(pred, ref, mask)
+    assert np.all(orb > 1.5)  # the highlight's ratio
+    assert psnr_h(pred, ref, mask, HdrScoring(normalise=False, scale="clipped")) == np.inf  # clipped alike: exact
+    assert psnr_h(pred, ref, mask, HdrScoring(normalise=False, scale="none")) == np.inf
+    assert psnr_h(pred, ref, mask, RAW) < 30  # every pixel brightened by the highlight's scale
+    # a uniformly dim prediction: the clipped fit recovers the factor, none leaves it
+    dim = 0.5 * _scene()[0]
+    clipped = HdrScoring(normalise=False, scale="clipped")
+    assert psnr_h(dim, _scene()[0], mask, clipped) > 100
+    assert psnr_h(dim, _scene()[0], mask, HdrScoring(normalise=False, scale="none")) < 30
+    with pytest.raises(ValueError, match="hdr_scale must be one of"):
+        HdrScoring(scale="median")
+    with pytest.raises(ValueError, match="hdr_clip must be positive"):
+        HdrScoring(clip=0.0)
+    assert HdrScoring.from_config({"hdr_clip": 2, "hdr_normalise": False, "hdr_scale": "none"}) == HdrScoring(
+        2.0, False, "none")
+
+
+def test_relight_view_scores_are_what_relight_scores_averages():
+    ref, mask = _scene()
+    rng = np.random.default_rng(11)
+    preds = [ref + 0.01 * k * rng.normal(size=ref.shape) for k in (1, 3)]
+    views = relight_view_scores(preds, [ref, ref], [mask, mask], RAW)
+    assert len(views) == 2 and views[0]["psnr_h"] > views[1]["psnr_h"]
+    mean = relight_scores(preds, [ref, ref], [mask, mask], RAW)
+    for name in mean:
+        assert mean[name] == pytest.approx((views[0][name] + views[1][name]) / 2)
 
 
 def test_scored_pixels_keeps_full_coverage_read_from_a_png():

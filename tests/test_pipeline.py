@@ -203,7 +203,7 @@ def test_metrics_csv_has_every_row(repo, run):
 
     methods = tiny_methods(repo)
     table = pd.read_csv(run / "results/tables/metrics.csv", keep_default_na=False)
-    assert list(table.columns) == ["object", "env", "poses", "method", "relight_env", "metric", "value"]
+    assert list(table.columns) == ["object", "env", "poses", "method", "relight_env", "view", "metric", "value"]
     table["value"] = table.value.astype(float)
     synthetic = table[table.object == "sphere"]
     assert (synthetic.env == "studio").all() and (table.poses == "gt").all()
@@ -219,11 +219,20 @@ def test_metrics_csv_has_every_row(repo, run):
         assert not rows.value.isna().any() and (rows.relight_env == "").all()
     assert (table[table.metric == "brdf_log_rmse"].value > 0).all()
     assert table[table.metric == "base_color_si_ssim"].value.between(-1.0, 1.0).all()
-    # relighting: every method under every held-out environment, never the capture's own
+    # relighting: every method under every held-out environment, never the capture's own; each
+    # test view's score and, with an empty view, their mean
     for metric in ("psnr_h", "psnr_l", "ssim", "mse"):
         rows = table[table.metric == metric]
-        assert sorted(zip(rows.method, rows.relight_env)) == sorted((m, r) for m in methods for r in HELD_OUT)
         assert np.isfinite(rows.value).all() and set(rows.object) == {"sphere"}
+        means, views = rows[rows.view == ""], rows[rows.view != ""]
+        assert sorted(zip(means.method, means.relight_env)) == sorted((m, r) for m in methods for r in HELD_OUT)
+        assert len(views) == 2 * len(means)  # the tiny preset's 2 test views
+        per_view = views.groupby(["method", "relight_env"]).value.mean().sort_index()
+        np.testing.assert_allclose(means.set_index(["method", "relight_env"]).value.sort_index(), per_view, rtol=1e-5)
+    if "mitsuba" in methods:  # whether the baseline converged: its MSE's fall over its last epoch
+        change = table[(table.method == "mitsuba") & (table.metric == "mitsuba_last_epoch_change")].value
+        converged = table[(table.method == "mitsuba") & (table.metric == "mitsuba_converged")].value
+        assert len(change) == len(converged) == 1 and converged.iloc[0] == float(change.iloc[0] < 0.01)
     assert table[table.metric == "ssim"].value.between(-1.0, 1.0).all()
     # the entropy-error correlation of freq (and mitsuba, if run)
     pearson = table[table.metric == "pearson_entropy_error"]
@@ -303,7 +312,8 @@ def test_tables_and_claims_follow_the_metrics(run):
                    if line.startswith("| ") and f"({method}) | here |" in line)
         assert f"| {mse:.3f} (" in row  # the run's number, in its environment's column
     claims = [line.split(" | ") for line in (tables / "claims.md").read_text().splitlines()[4:] if line.startswith("| ")]
-    assert len(claims) == 12 and all(cells[3] in ("yes", "no", "not run") for cells in claims)
+    assert len(claims) == 12 and all(cells[3] in ("yes", "no", "within noise", "not judged", "not run")
+                                     for cells in claims)
     page = (tables / "tables.html").read_text()
     assert all(f"Table {n}:" in page for n in (1, 2, 4, 5, 6)) and "<script" not in page
     # the views sweep of the tiny capture: 2 and all 4 views, freq's MSE and mean entropy for each
@@ -391,6 +401,10 @@ def test_changing_a_metric_setting_reruns_only_metrics_and_report_rules(repo, ru
                     "all": 1}
 
 
+# The claims' verdict cells: yes, no, within noise, not judged (freqbrdf.report.tables.render.HTML_STYLE).
+VERDICT_COLOURS = ((216, 245, 208), (248, 208, 208), (248, 240, 200), (232, 232, 232))
+
+
 def _colour_count(image, rgb) -> int:
     return int((image[..., :3] == np.array(rgb, dtype=np.uint8)).all(axis=-1).sum())
 
@@ -418,7 +432,7 @@ def test_report_builds_and_a_headless_browser_shows_tables_and_figures(repo, run
     # The tables page renders: its header cells (#eef) and, in the claims, the verdict colours.
     assert _colour_count(images["tables"], (238, 238, 255)) > 20000
     assert _colour_count(images["claims"], (238, 238, 255)) > 2000
-    assert _colour_count(images["claims"], (216, 245, 208)) + _colour_count(images["claims"], (248, 208, 208)) > 500
+    assert sum(_colour_count(images["claims"], c) for c in VERDICT_COLOURS) > 500
     # The figures show: many colours right of the navigation pane (its first fifth; colour maps,
     # renders). Measured: maps 5,700, relight 81,000, while the pages without a figure (the
     # landing page's rule graph, the tables) have 470-1,100. The right half alone, with a bound
@@ -435,8 +449,9 @@ def test_report_builds_and_a_headless_browser_shows_tables_and_figures(repo, run
     for text in ("This run", "The paper's claims on this run", "Headline numbers", "sphere", "studio",
                  *(f"{METHODS[m].label} ({m})" for m in tiny_methods(repo))):
         assert text in summary, f"summary page lacks {text!r}"
-    assert re.search(r"\d+ claims: \d+ hold, \d+ do not hold, \d+ not run", summary)
-    assert _colour_count(images["workflow"], (216, 245, 208)) + _colour_count(images["workflow"], (248, 208, 208)) > 200
+    assert re.search(r"\d+ claims: \d+ yes, \d+ no, \d+ within noise, \d+ not judged, \d+ not run", summary)
+    assert sum(_colour_count(images["workflow"], c) for c in VERDICT_COLOURS) > 200
+    assert "A smoke test" in summary  # the tiny preset says its verdicts mean nothing
 
 
 def test_the_readme_report_command_reports_the_tiny_run_without_its_configfile(repo, run):
@@ -634,9 +649,9 @@ def comparable_metrics(workdir):
     import pandas as pd
 
     table = pd.read_csv(workdir / "results/tables/metrics.csv", keep_default_na=False, na_values=[""])
-    table[["method", "relight_env"]] = table[["method", "relight_env"]].fillna("")
+    table[["method", "relight_env", "view"]] = table[["method", "relight_env", "view"]].fillna("")
     table = table[~table.metric.isin(TIMING_METRICS)]
-    return table.sort_values(["object", "env", "poses", "method", "relight_env", "metric"]).reset_index(drop=True)
+    return table.sort_values(["object", "env", "poses", "method", "relight_env", "view", "metric"]).reset_index(drop=True)
 
 
 def through_mitsuba(method):
@@ -810,7 +825,7 @@ def test_the_slurm_profile_scores_the_tiny_benchmark_as_a_local_run(repo, run, s
     assert len(set(submitted)) >= len(SLURM_STAGES)  # every stage went through sbatch
     theirs = comparable_metrics(workdir)
     ours = comparable_metrics(run)
-    ours = ours.merge(theirs[["object", "env", "poses", "method", "relight_env", "metric"]])
+    ours = ours.merge(theirs[["object", "env", "poses", "method", "relight_env", "view", "metric"]])
     assert len(theirs) > 30 and len(ours) == len(theirs)
     pd.testing.assert_frame_equal(theirs, ours, check_exact=False, rtol=1e-9, atol=1e-9)
 

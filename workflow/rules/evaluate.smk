@@ -1,6 +1,3 @@
-# Settings that only change how results/tables/metrics.csv scores the outputs.
-# Only the metrics rule receives them, so editing one reruns nothing upstream.
-METRIC_KEYS = ["mask_min_coverage", "hdr_clip", "hdr_normalise"]
 # What the metrics rule scores; its input lists follow these orders.
 METRIC_ESTIMATES = [(o, e, p, m) for o, e, p in SCORED for m in METHODS]
 METRIC_REFERENCES = sorted({(o, r) for o, _, _, _, r in RELIGHTS})

@@ -205,7 +205,7 @@ rule score_real_relight:
         runtime=minutes(1, "pixels"),
     params:
         methods=METHODS,
-        metrics={key: config["evaluate"][key] for key in ("mask_min_coverage", "hdr_clip", "hdr_normalise")},
+        metrics={key: config["evaluate"][key] for key in METRIC_KEYS},
     script:
         "../scripts/score_real_relight.py"
 

@@ -5,7 +5,8 @@
 rule mitsuba:
     """SVBRDF textures by differentiable rendering: Mitsuba's prb integrator and
     Adam on the base colour, roughness and metallic textures of a principled
-    BSDF, one training view per step (mitsuba: from 0.5; freq+mitsuba: from freq)."""
+    BSDF, mitsuba.views_per_step training views per step (mitsuba: from 0.5;
+    freq+mitsuba: from freq)."""
     input:
         unpack(mitsuba_start),
         unpack(mitsuba_evaluation),

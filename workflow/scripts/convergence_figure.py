@@ -5,13 +5,15 @@ from pathlib import Path
 import pandas as pd
 
 from freqbrdf.report.figures import convergence_figure
+from freqbrdf.report.tables.tidy import read_tidy
 from freqbrdf.util.logs import run_script
 
 
 def main(smk, log):
     w = smk.wildcards
-    metrics = pd.read_csv(smk.input.metrics, keep_default_na=False, na_values=[""])
-    rows = metrics[(metrics.object == w.object) & (metrics.env == w.env) & (metrics.poses == w.poses)]
+    metrics = read_tidy(smk.input.metrics)
+    rows = metrics[(metrics.object == w.object) & (metrics.env == w.env) & (metrics.poses == w.poses)
+                   & (metrics.view == "")]
     value = {(m, k): float(v) for m, k, v in zip(rows.method, rows.metric, rows.value)}
     extract_s = pd.read_csv(smk.input.extraction, sep="\t")["s"].mean()
     # one-shot methods at their whole time from the capture (extraction included)

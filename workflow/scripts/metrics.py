@@ -8,6 +8,7 @@ from functools import cache
 from itertools import accumulate
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
@@ -16,11 +17,12 @@ from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
-from freqbrdf.report.metrics import (base_color_si_scores, brdf_log_rmse, parameter_error_map, parameter_mse, pearson,
-                                     time_to_reach)
-from freqbrdf.report.relight_metrics import relight_scores, scored_pixels
+from freqbrdf.report.metrics import (CONVERGED_CHANGE, base_color_si_scores, brdf_log_rmse, last_epoch_change,
+                                     parameter_error_map, parameter_mse, pearson, time_to_reach)
+from freqbrdf.report.tables.tidy import TIDY_COLUMNS
+from freqbrdf.report.relight_metrics import RELIGHT_METRICS, HdrScoring, relight_view_scores, scored_pixels
 
-COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
+COLUMNS = list(TIDY_COLUMNS)
 
 
 def keyed(keys, paths, per=1):
@@ -69,7 +71,8 @@ def reference_views(test, min_coverage):
 
 
 def relight_rows(smk, log):
-    """psnr_h, psnr_l, ssim, mse (means over the test views) of every relit image set."""
+    """psnr_h, psnr_l, ssim, mse of every relit image set: each test view's (``view`` set), and their
+    mean over the views (``view`` empty)."""
     settings = smk.params.metrics
     tests = keyed(smk.params.references, smk.input.references)
     reference = cache(lambda key: reference_views(tests[key], settings["mask_min_coverage"]))
@@ -77,9 +80,12 @@ def relight_rows(smk, log):
     for (obj, env, poses, method, relight_env), relit in keyed(smk.params.relights, smk.input.relit).items():
         names, refs, masks = reference((obj, relight_env))
         preds = [read_exr(f"{relit}/{relight_env}/images/{name}.exr") for name in names]
-        scores = relight_scores(preds, refs, masks, clip=settings["hdr_clip"], normalise=settings["hdr_normalise"])
+        per_view = relight_view_scores(preds, refs, masks, HdrScoring.from_config(settings))
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env=relight_env)
-        rows += [key | dict(metric=k, value=v) for k, v in scores.items()]
+        rows += [key | dict(view="", metric=k, value=float(np.mean([v[k] for v in per_view])))
+                 for k in RELIGHT_METRICS]
+        rows += [key | dict(view=name, metric=k, value=v) for name, scores in zip(names, per_view)
+                 for k, v in scores.items()]
     log.info("scored %d relit image sets", len(smk.params.relights))
     return rows
 
@@ -119,7 +125,9 @@ def equal_accuracy_rows(smk, rows, log):
     parameter MSE (``mitsuba_time_to_match_s``, NaN if never within its budget), and that
     time over the method's whole path from the capture (``speed_ratio_equal_accuracy``:
     observation extraction plus ``time_total_s``). When mitsuba never gets there, the ratio
-    is its whole budget over the path, a lower bound, and ``mitsuba_reached`` is 0."""
+    is its whole budget over the path, a lower bound, and ``mitsuba_reached`` is 0. For
+    ``mitsuba`` itself: ``mitsuba_last_epoch_change``, the relative fall of its MSE over its last
+    epoch, and ``mitsuba_converged``, 1 when that is under 1%."""
     value = {(r["object"], r["env"], r["poses"], r["method"], r["metric"]): r["value"] for r in rows}
     extraction = {key: benchmark(path)[0] for key, path in keyed(smk.params.captures, smk.input.extraction).items()}
     estimates = keyed(smk.params.synthetic, smk.input.estimates)
@@ -131,6 +139,10 @@ def equal_accuracy_rows(smk, rows, log):
         if not curve_file.is_file():
             raise FileNotFoundError(f"{curve_file}: no MSE curve (rerun rule mitsuba for this capture)")
         curve = pd.read_csv(curve_file, sep="\t")
+        change = last_epoch_change(curve.mse_average.to_numpy())
+        key = dict(object=obj, env=env, poses=poses, method="mitsuba", relight_env="")
+        out += [key | dict(metric="mitsuba_last_epoch_change", value=change),
+                key | dict(metric="mitsuba_converged", value=float(change < CONVERGED_CHANGE))]
         for method in (m for m in smk.params.methods if METHODS[m].rule in FREQUENCY_RULES):
             target, total = value.get((obj, env, poses, method, "mse_average")), value.get((obj, env, poses, method, "time_total_s"))
             if target is None or total is None:
@@ -177,7 +189,7 @@ def main(smk, log):
     table = pd.DataFrame(rows, columns=COLUMNS)
     with atomic_path(smk.output[0]) as tmp:
         table.to_csv(tmp, index=False, float_format="%.6g")
-    summary = table[table.metric.isin(["mse_average", "psnr_h", "time_total_s"])]
+    summary = table[table.metric.isin(["mse_average", "psnr_h", "time_total_s"]) & table.view.fillna("").eq("")]
     log.info("means over captures (and relight environments):\n%s",
              summary.pivot_table(index="method", columns="metric", values="value").to_string(float_format=lambda v: f"{v:.3f}"))
 

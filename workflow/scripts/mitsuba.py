@@ -10,7 +10,7 @@ from freqbrdf.artefacts import read_observations, read_svbrdf, write_svbrdf
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.report.metrics import parameter_mse
 from freqbrdf.scene.cameras import cameras_from_json
-from freqbrdf.estimate.mitsuba import InverseSettings, constant_textures, optimise_textures
+from freqbrdf.estimate.mitsuba import InverseSettings, constant_textures, optimise_textures, step_table
 from freqbrdf.util.io import atomic_directory, atomic_path, read_exr, read_json, read_views
 from freqbrdf.util.logs import progress, run_script
 from freqbrdf.util.mitsuba_setup import setup_mitsuba
@@ -59,18 +59,16 @@ def main(smk, log):
 
     with atomic_directory(smk.output.estimate) as tmp:
         write_svbrdf(tmp, result.textures)
-        steps = np.arange(len(result.loss))
-        table = pd.DataFrame({"iteration": steps, "loss": result.loss, "epoch": steps // len(cameras) + 1,
-                              "view": [cameras.names[k] for k in result.view]})
         with atomic_path(tmp / "loss.tsv") as f:
-            table.to_csv(f, sep="\t", index=False)
+            pd.DataFrame(step_table(result, cameras.names)).to_csv(f, sep="\t", index=False)
         if result.evaluations:
             with atomic_path(tmp / "mse_curve.tsv") as f:
                 pd.DataFrame(result.evaluations).to_csv(f, sep="\t", index=False, float_format="%.6g")
             log.info("parameter MSE by epoch: %s", ", ".join(f"{r['mse_average']:.4f} at {r['elapsed_s']:.1f} s"
                                                             for r in result.evaluations))
         title = f"{smk.wildcards.object} / {smk.wildcards.env}: {smk.wildcards.method}"
-        loss_figure(tmp / "loss.png", result.loss, title, ylabel=f"{settings.loss} + TV loss (one view per step)")
+        per_step = "one view" if settings.views_per_step == 1 else f"{settings.views_per_step} views"
+        loss_figure(tmp / "loss.png", result.loss, title, ylabel=f"{settings.loss} + TV loss ({per_step} per step)")
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from freqbrdf.report.figures import relight_figure
-from freqbrdf.report.relight_metrics import scored_pixels
+from freqbrdf.report.relight_metrics import HdrScoring, scored_pixels
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import read_exr, read_json, read_views
 from freqbrdf.util.logs import run_script
@@ -31,7 +31,7 @@ def main(smk, log):
         relit.setdefault(relight_env, {})[method] = read_exr(view)
     scores = relight_figure(smk.output[0], references, relit,
                             f"{w.object} captured under {w.env}: the first test view relit under held-out environments",
-                            clip=settings["hdr_clip"], normalise=settings["hdr_normalise"])
+                            HdrScoring.from_config(settings))
     log.info("PSNR-H of the first test view: %s",
              ", ".join(f"{m} under {r} {v:.2f}" for (r, m), v in scores.items()) or "no relighting")
 

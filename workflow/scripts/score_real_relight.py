@@ -4,6 +4,7 @@ Scored like rule metrics scores synthetic relighting (freqbrdf.report.relight_me
 over the pixels the test mask covers and whose photograph is finite.
 """
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -12,9 +13,10 @@ import pandas as pd
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.util.logs import run_script
-from freqbrdf.report.relight_metrics import relight_scores
+from freqbrdf.report.relight_metrics import HdrScoring, relight_scores
+from freqbrdf.report.tables.tidy import TIDY_COLUMNS
 
-COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
+COLUMNS = list(TIDY_COLUMNS)
 
 
 def main(smk, log):
@@ -27,10 +29,13 @@ def main(smk, log):
         log.warning("%d NaN/Inf pixel values in the test photographs: not scored", nonfinite)
     refs = list(np.nan_to_num(images, nan=0.0, posinf=0.0, neginf=0.0))
     w = smk.wildcards
+    scoring = HdrScoring.from_config(settings)
+    if scoring.scale == "none":  # a photograph's exposure is not the renderer's: a scale must be fitted
+        scoring = dataclasses.replace(scoring, scale="clipped")
     rows = []
     for method, relit in zip(smk.params.methods, smk.input.relit):
         preds = [read_exr(f"{relit}/images/{name}.exr") for name in cameras.names]
-        scores = relight_scores(preds, refs, list(masks), clip=settings["hdr_clip"], normalise=settings["hdr_normalise"])
+        scores = relight_scores(preds, refs, list(masks), scoring)
         key = dict(object=w.object, env=w.env, poses=w.poses, method=method, relight_env="test_views")
         rows += [key | dict(metric=k, value=v) for k, v in scores.items()]
     table = pd.DataFrame(rows, columns=COLUMNS)

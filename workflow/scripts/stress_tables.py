@@ -17,7 +17,7 @@ from freqbrdf.report.metrics import parameter_error_map
 from freqbrdf.studies.stress import blocked_light, image_psnr, pair_table, pose_effect_table, region_table, stress_table
 from freqbrdf.report.tables.display import fmt, method_label
 from freqbrdf.report.tables.render import html_page, to_html, to_markdown
-from freqbrdf.report.tables.tidy import check_tidy
+from freqbrdf.report.tables.tidy import read_tidy
 
 
 def capture_arrays(smk, index):
@@ -71,7 +71,7 @@ def occluder_regions(smk, arrays, index, log):
 
 def main(smk, log):
     p = smk.params
-    metrics = check_tidy(pd.read_csv(smk.input.metrics, keep_default_na=False, na_values=[""]))
+    metrics = read_tidy(smk.input.metrics)
     primary = metrics[metrics.poses == p.poses]
     sections = []
     for source in p.compare:

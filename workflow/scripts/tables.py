@@ -2,15 +2,16 @@
 as Markdown and LaTeX files, and as HTML pages for the Snakemake report; and the
 report's landing summary (what was run, the claims' verdicts, the headline numbers)."""
 
-import pandas as pd
 
 from freqbrdf.util.io import atomic_path
 from freqbrdf.util.logs import run_script
 from freqbrdf.report.tables.paper import read_paper_results
 from freqbrdf.report.tables.render import html_page, to_html, to_latex, to_markdown
-from freqbrdf.report.tables.summary import run_facts, run_summary_html, summaries
+from freqbrdf.report.intervals import Bootstrap
+from freqbrdf.report.tables.claims import ClaimContext
+from freqbrdf.report.tables.summary import mitsuba_budget, run_facts, run_summary_html, summaries
 from freqbrdf.report.tables.tables import headline_table
-from freqbrdf.report.tables.tidy import check_tidy
+from freqbrdf.report.tables.tidy import read_tidy
 
 
 def write_text(path: str, text: str) -> None:
@@ -19,13 +20,15 @@ def write_text(path: str, text: str) -> None:
 
 
 def main(smk, log):
-    metrics = check_tidy(pd.read_csv(smk.input.metrics, keep_default_na=False, na_values=[""]))
+    metrics = read_tidy(smk.input.metrics)
     # One pose source per table, the run's, and the benchmark's captures only: metrics.csv also
     # holds poses.compare and the stress captures (rule stress_tables reports them).
     metrics = metrics[(metrics.poses == smk.params.poses) & ~metrics.object.isin(smk.params.stress)]
     if metrics.empty:
         raise ValueError(f"{smk.input.metrics}: no rows with poses == {smk.params.poses!r}")
-    tables = summaries(metrics, read_paper_results(smk.input.paper), smk.params.env_kinds)
+    context = ClaimContext(Bootstrap.from_config(smk.params.intervals, smk.params.intervals_seed),
+                           mitsuba_budget(smk.params.run["mitsuba"]), frozenset(smk.params.real_objects))
+    tables = summaries(metrics, read_paper_results(smk.input.paper), smk.params.env_kinds, context)
     for summary in tables:
         write_text(smk.output[f"{summary.key}_md"], to_markdown(summary.table, summary.title, summary.caption))
         write_text(smk.output[f"{summary.key}_tex"],

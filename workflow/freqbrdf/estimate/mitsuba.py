@@ -9,23 +9,33 @@ capture's environment map and rendered with path replay backpropagation
 (``prb``), which gives gradients of the rendered image with respect to every
 texel, including through inter-reflections up to ``max_depth``.
 
-One gradient step renders one training view (a full image at ``spp`` samples
-per pixel) and compares it with the captured image; an epoch visits every
-view once, in a seeded random order. The objective of a step is
+A gradient step renders ``views_per_step`` training views (by default one;
+each a full image at ``spp`` samples per pixel) and compares them with the
+captured images; an epoch visits every view once, in a seeded random order,
+in ceil(views / views_per_step) steps. The objective of a step is the mean
+over its views of
 
-    loss = sum_px w_px sum_c d(I_pxc, I'_pxc) / (3 sum_px w_px) + tv_weight * TV
+    sum_px w_px sum_c d(I_pxc, I'_pxc) / (3 sum_px w_px)
 
-with ``w`` the object-coverage mask of the view (background pixels show the
-environment and carry no information about the material; NaN/Inf pixels of
-the capture get weight 0), ``d`` either ``|log(1 + I) - log(1 + I')|``
-(``l1log``: the log compression of the authors' reference code keeps bright
-highlights from dominating; its extra gamma curve is left out because its
-slope is infinite at black, where a noisy render is often exactly 0) or
-``(I - I')^2`` (``l2``). TV is the mean absolute difference between
-horizontally and vertically adjacent texels, summed over the five parameter
-channels (base R, G, B, roughness, metallic), as in :mod:`freqbrdf.estimate.optimise`,
-so ``tv_weight`` means the same for both estimators (here over the whole
-atlas, not only over the observed texels). After each Adam step the
+plus the regulariser, with ``w`` the object-coverage mask of the view
+(background pixels show the environment and carry no information about the
+material; NaN/Inf pixels of the capture get weight 0) and ``d`` one of
+``|log(1 + I) - log(1 + I')|`` (``l1log``: the log compression of the
+authors' reference code keeps bright highlights from dominating; its extra
+gamma curve is left out because its slope is infinite at black, where a noisy
+render is often exactly 0; nearly linear at radiance ~0.1-0.5),
+``|log(I + eps) - log(I' + eps)|`` (``l1rel``, ``eps = loss_eps``: about the
+relative error, which the reference code's log-then-gamma loss
+approximates) or ``(I - I')^2`` (``l2``). The views of a step are rendered
+and backpropagated one after the other (``prb`` replays a render's paths when
+its gradient is taken, so each must be done before the sensor moves), their
+gradients summed, before one Adam step. The regulariser is ``tv_weight``
+times TV, the mean absolute difference between horizontally and vertically
+adjacent texels, summed over the five parameter channels (base R, G, B,
+roughness, metallic), as in :mod:`freqbrdf.estimate.optimise`, so
+``tv_weight`` means the same for both estimators (here over the whole atlas,
+not only over the observed texels); ``tv_weight`` and the learning rate may
+also be given per texture (:class:`InverseSettings`). After each Adam step the
 textures are clamped to [0, 1].
 
 Mitsuba is passed in as the first argument (``mi``) with a variant already
@@ -42,68 +52,26 @@ from __future__ import annotations
 
 import contextlib
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 
+from freqbrdf.estimate.mitsuba_settings import LOSSES, LR_DECAYS, InverseSettings, lr_factor, render_seeds, view_order
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.scene.cameras import Cameras, mitsuba_to_world
 from freqbrdf.scene.render import capture_scene, principled_bsdf
 from freqbrdf.util.validation import check_int
 
-LOSSES = ("l1log", "l2")
 # The object's name in the scene built by render.capture_scene.
 _PARAM_KEYS = {name: f"object.bsdf.{name}.data" for name in TEXTURES}
 _CHANNELS = {"base_color": 3, "roughness": 1, "metallic": 1}
 
-
-@dataclass(frozen=True)
-class InverseSettings:
-    """Settings of the differentiable-rendering optimiser (config ``mitsuba``).
-
-    Attributes
-    ----------
-    epochs : int
-        Passes over the training views; one view per gradient step.
-    spp : int
-        Samples per pixel of each gradient step's render (the ``prb``
-        integrator uses the same count for its adjoint pass).
-    lr : float
-        Adam learning rate (texture values are in [0, 1]).
-    loss : {"l1log", "l2"}
-        Image distance (module docstring).
-    tv_weight : float
-        Weight of the textures' total variation, ``>= 0``.
-    max_depth : int
-        Path length limit of ``prb`` (-1: unlimited; 2: direct light only).
-    seed : int
-        Seeds the view order of every epoch and every step's sampler.
-    """
-
-    epochs: int = 10
-    spp: int = 32
-    lr: float = 0.01
-    loss: str = "l1log"
-    tv_weight: float = 1e-3
-    max_depth: int = 8
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        check_int(self.epochs, "epochs", 1)
-        check_int(self.spp, "spp", 1)
-        check_int(self.seed, "seed", 0)
-        check_int(self.max_depth, "max_depth", -1)
-        if self.max_depth == 0:
-            raise ValueError("max_depth must be -1 (unlimited) or >= 1, got 0")
-        if not (np.isfinite(self.lr) and self.lr > 0):
-            raise ValueError(f"lr must be a finite number > 0, got {self.lr!r}")
-        if self.loss not in LOSSES:
-            raise ValueError(f"loss must be one of {LOSSES}, got {self.loss!r}")
-        if not (np.isfinite(self.tv_weight) and self.tv_weight >= 0):
-            raise ValueError(f"tv_weight must be a finite number >= 0, got {self.tv_weight!r}")
+__all__ = ["LOSSES", "LR_DECAYS", "EpochReport", "InverseResult", "InverseSettings", "check_textures",
+           "constant_textures", "image_loss", "inverse_scene", "lr_factor", "optimise_textures", "render_seeds",
+           "sensor_intrinsics", "sensor_views", "step_table", "texture_regulariser", "total_variation", "view_order"]
 
 
 @dataclass(frozen=True)
@@ -140,10 +108,12 @@ class InverseResult:
     textures : dict
         ``base_color`` (R, R, 3), ``roughness`` (R, R), ``metallic`` (R, R),
         float32 in [0, 1].
-    loss : ndarray, shape (epochs * K,)
-        Loss of every step (before its update).
-    view : ndarray, shape (epochs * K,), int
-        Index of the view rendered at each step.
+    loss : ndarray, shape (S,)
+        Loss of every step (before its update); S = epochs * ceil(K / views_per_step).
+    views : tuple of tuple of int, length S
+        Indices of the views rendered at each step, in render order.
+    epoch : ndarray, shape (S,), int
+        1-based epoch of each step.
     epoch_loss : ndarray, shape (epochs,)
         Mean loss of each epoch.
     evaluations : list of dict
@@ -154,9 +124,29 @@ class InverseResult:
 
     textures: dict[str, np.ndarray]
     loss: np.ndarray
-    view: np.ndarray
+    views: tuple[tuple[int, ...], ...]
+    epoch: np.ndarray
     epoch_loss: np.ndarray
     evaluations: list[dict[str, float]]
+
+
+def step_table(result: InverseResult, names: Sequence[str]) -> dict[str, np.ndarray | list[str]]:
+    """Columns of ``loss.tsv``: one row per Adam step.
+
+    Parameters
+    ----------
+    result : InverseResult
+    names : sequence of str
+        Names of the views, indexed as ``result.views``.
+
+    Returns
+    -------
+    dict
+        ``iteration`` (0-based step), ``loss``, ``epoch`` (1-based) and
+        ``view``: the names of the step's views joined by ``+`` in render order.
+    """
+    return {"iteration": np.arange(len(result.loss)), "loss": np.asarray(result.loss),
+            "epoch": np.asarray(result.epoch), "view": ["+".join(names[k] for k in step) for step in result.views]}
 
 
 def constant_textures(resolution: int, value: float = 0.5) -> dict[str, np.ndarray]:
@@ -308,23 +298,7 @@ def inverse_scene(
                          max_depth=max_depth, integrator="prb")
 
 
-def _step_seeds(seed: int, step: int) -> tuple[int, int]:
-    """Sampler seeds (32-bit) of one step's primal and adjoint renders.
-
-    Distinct strides keep the two passes' noise independent (correlated
-    noise biases the gradient) and every step's noise different.
-    """
-    primal = (int(seed) * 0x85EBCA6B + step * 0x9E3779B1 + 1) & 0xFFFFFFFF
-    adjoint = (int(seed) * 0xC2B2AE35 + step * 0x27D4EB2F + 2) & 0xFFFFFFFF
-    return primal, adjoint
-
-
-def view_order(seed: int, epoch: int, n_views: int) -> np.ndarray:
-    """Seeded random order of the views in one epoch, shape (n_views,)."""
-    return np.random.default_rng([int(seed), int(epoch)]).permutation(n_views)
-
-
-def image_loss(mi: ModuleType, image, reference, weight, kind: str):
+def image_loss(mi: ModuleType, image, reference, weight, kind: str, eps: float = 0.01):
     """Coverage-weighted mean image distance (module docstring), a Dr.Jit scalar.
 
     Parameters
@@ -333,12 +307,16 @@ def image_loss(mi: ModuleType, image, reference, weight, kind: str):
         Rendered and captured linear radiance.
     weight : mitsuba.TensorXf, shape (H, W, 1)
         Per-pixel weight (object coverage), not all zero.
-    kind : {"l1log", "l2"}
+    kind : {"l1log", "l2", "l1rel"}
+    eps : float
+        Offset of ``l1rel``, ``|log(I + eps) - log(I' + eps)|`` (both clamped at 0 first).
     """
     import drjit as dr
 
     if kind == "l1log":
         distance = dr.abs(dr.log(1.0 + dr.maximum(image, 0.0)) - dr.log(1.0 + reference))
+    elif kind == "l1rel":
+        distance = dr.abs(dr.log(dr.maximum(image, 0.0) + eps) - dr.log(dr.maximum(reference, 0.0) + eps))
     elif kind == "l2":
         distance = dr.square(image - reference)
     else:
@@ -391,9 +369,54 @@ def _check_captures(cameras: Cameras, images: np.ndarray, weights: np.ndarray) -
     return images, weights
 
 
-def _adam_step(mi: ModuleType, scene, params, opt, image: np.ndarray, weight: np.ndarray,
-               settings: InverseSettings, step: int) -> float:
-    """Render the view the sensor is set to, backpropagate its loss, update and clamp the textures.
+def texture_regulariser(mi: ModuleType, textures: Mapping[str, object],
+                        tv_weight: float | Mapping[str, float]) -> object | None:
+    """The weighted total variation of the textures (a Dr.Jit scalar), or None when every weight is 0.
+
+    Parameters
+    ----------
+    textures : mapping
+        ``base_color``, ``roughness``, ``metallic`` -> mitsuba.TensorXf (R, R, C).
+    tv_weight : float or mapping
+        One weight times the TV of all five channels, or per texture name a
+        weight times the TV of that texture's own channels.
+    """
+    if not isinstance(tv_weight, Mapping):
+        return tv_weight * total_variation(mi, [textures[name] for name in TEXTURES]) if tv_weight > 0 else None
+    total = None
+    for name in TEXTURES:
+        if tv_weight[name] > 0:
+            term = tv_weight[name] * total_variation(mi, [textures[name]])
+            total = term if total is None else total + term
+    return total
+
+
+@dataclass(frozen=True)
+class _Views:
+    """The training views as the steps use them: sensor parameters, images and weights (K, H, W, 3 and K, H, W)."""
+
+    sensors: list[dict[str, object]]
+    images: np.ndarray
+    weights: np.ndarray
+
+
+def _set_learning_rates(opt, rates: float | Mapping[str, float]) -> None:
+    """Adam's learning rate: one for every texture, or one per texture name (Dr.Jit's per-parameter rates)."""
+    if isinstance(rates, Mapping):
+        opt.set_learning_rate({_PARAM_KEYS[name]: float(value) for name, value in rates.items()})
+    else:
+        opt.set_learning_rate(float(rates))
+
+
+def _adam_step(mi: ModuleType, scene, params, opt, views: Sequence[int], data: _Views,
+               settings: InverseSettings, first_render: int) -> float:
+    """Render the step's views, backpropagate their mean loss and the regulariser, update and clamp the textures.
+
+    Each view is rendered and backpropagated before the sensor moves to the
+    next (``prb`` re-renders the scene in its adjoint pass), each with its
+    share ``1 / len(views)`` of the loss; the texel gradients add up, and the
+    regulariser joins the last view's backward pass. ``first_render`` is the
+    run's count of renders before this step (:func:`render_seeds`).
 
     Returns the step's loss (before the update). Nothing of the step's
     differentiable graph outlives this call (``dr.backward`` frees it), so
@@ -401,17 +424,66 @@ def _adam_step(mi: ModuleType, scene, params, opt, image: np.ndarray, weight: np
     """
     import drjit as dr
 
-    params.update(opt)
-    seed, seed_grad = _step_seeds(settings.seed, step)
-    rendered = mi.render(scene, params, spp=settings.spp, seed=seed, seed_grad=seed_grad)
-    loss = image_loss(mi, rendered, mi.TensorXf(image), mi.TensorXf(weight[..., None]), settings.loss)
-    if settings.tv_weight > 0:
-        loss = loss + settings.tv_weight * total_variation(mi, [opt[key] for key in _PARAM_KEYS.values()])
-    dr.backward(loss)
+    total = 0.0
+    for i, k in enumerate(views):
+        for key, value in data.sensors[k].items():
+            params[key] = value
+        if i == 0:
+            params.update(opt)
+        else:
+            params.update()
+        seed, seed_grad = render_seeds(settings.seed, first_render + i)
+        rendered = mi.render(scene, params, spp=settings.spp, seed=seed, seed_grad=seed_grad)
+        loss = image_loss(mi, rendered, mi.TensorXf(data.images[k]), mi.TensorXf(data.weights[k][..., None]),
+                          settings.loss, settings.loss_eps)
+        if len(views) > 1:
+            loss = loss / len(views)
+        if i == len(views) - 1:
+            regulariser = texture_regulariser(mi, {name: opt[key] for name, key in _PARAM_KEYS.items()},
+                                              settings.tv_weight)
+            loss = loss if regulariser is None else loss + regulariser
+        dr.backward(loss)
+        total += float(loss.array[0])
     opt.step()
     for key in _PARAM_KEYS.values():
         opt[key] = dr.clip(opt[key], 0.0, 1.0)
-    return float(loss.array[0])
+    return total
+
+
+@dataclass
+class _Trace:
+    """What a run records: per step its loss, views and epoch; per epoch the mean loss and evaluations."""
+
+    loss: list[float]
+    views: list[tuple[int, ...]]
+    epoch: list[int]
+    epoch_loss: list[float]
+    evaluations: list[dict[str, float]]
+
+
+def _run_epoch(mi: ModuleType, scene, params, opt, data: _Views, settings: InverseSettings, epoch: int,
+               trace: _Trace) -> None:
+    """One pass over every view in the epoch's seeded order, ``views_per_step`` views per Adam step."""
+    n_views = len(data.sensors)
+    steps = settings.epochs * settings.steps_per_epoch(n_views)
+    order = [int(k) for k in view_order(settings.seed, epoch, n_views)]
+    for first in range(0, n_views, settings.views_per_step):
+        views = tuple(order[first:first + settings.views_per_step])
+        _set_learning_rates(opt, settings.learning_rates(len(trace.loss), steps))
+        renders = sum(len(v) for v in trace.views)
+        trace.loss.append(_adam_step(mi, scene, params, opt, views, data, settings, renders))
+        trace.views.append(views)
+        trace.epoch.append(epoch + 1)
+    trace.epoch_loss.append(float(np.mean(trace.loss[-settings.steps_per_epoch(n_views):])))
+
+
+def _start_optimiser(mi: ModuleType, params, settings: InverseSettings):
+    """Adam over the three texture parameters of the scene (learning rates set before every step)."""
+    opt = mi.ad.Adam(lr=max(settings.lr.values()) if isinstance(settings.lr, Mapping) else settings.lr)
+    for key in _PARAM_KEYS.values():
+        opt[key] = params[key]
+    params.update(opt)
+    return opt
 
 
 def optimise_textures(
@@ -463,37 +535,30 @@ def optimise_textures(
         raise ValueError(f"optimise_textures needs a differentiable Mitsuba variant (e.g. llvm_ad_rgb), "
                          f"not {mi.variant()}")
     images, weights = _check_captures(cameras, images, weights)
-    sensors = sensor_views(mi, cameras)
+    data = _Views(sensor_views(mi, cameras), images, weights)
     scene = inverse_scene(mi, mesh, envmap, start, width=cameras.width, height=cameras.height,
                           spp=settings.spp, max_depth=settings.max_depth)
     params = mi.traverse(scene)
-    opt = mi.ad.Adam(lr=settings.lr)
-    for key in _PARAM_KEYS.values():
-        opt[key] = params[key]
-    params.update(opt)
+    opt = _start_optimiser(mi, params, settings)
 
-    losses, order, epoch_loss, evaluations = [], [], [], []
+    trace = _Trace([], [], [], [], [])
     clock = _Clock()
     if evaluate is not None:
         with clock.paused():
-            evaluations.append({"epoch": 0, "elapsed_s": 0.0, **evaluate(_textures(opt))})
+            trace.evaluations.append({"epoch": 0, "elapsed_s": 0.0, **evaluate(_textures(opt))})
     for epoch in range(settings.epochs):
-        for k in view_order(settings.seed, epoch, len(cameras)):
-            for key, value in sensors[k].items():
-                params[key] = value
-            losses.append(_adam_step(mi, scene, params, opt, images[k], weights[k], settings, len(losses)))
-            order.append(int(k))
-        epoch_loss.append(float(np.mean(losses[-len(cameras):])))
+        _run_epoch(mi, scene, params, opt, data, settings, epoch, trace)
         elapsed = clock.elapsed()
         with clock.paused():
             if evaluate is not None:
-                evaluations.append({"epoch": epoch + 1, "elapsed_s": elapsed, **evaluate(_textures(opt))})
+                trace.evaluations.append({"epoch": epoch + 1, "elapsed_s": elapsed, **evaluate(_textures(opt))})
             if progress is not None:
-                progress(EpochReport(epoch + 1, settings.epochs, epoch_loss[-1], elapsed, _resident_mb()))
+                progress(EpochReport(epoch + 1, settings.epochs, trace.epoch_loss[-1], elapsed, _resident_mb()))
 
     params.update(opt)
-    return InverseResult(textures=_textures(params), loss=np.asarray(losses), view=np.asarray(order, dtype=np.int64),
-                         epoch_loss=np.asarray(epoch_loss), evaluations=evaluations)
+    return InverseResult(textures=_textures(params), loss=np.asarray(trace.loss), views=tuple(trace.views),
+                         epoch=np.asarray(trace.epoch, dtype=np.int64), epoch_loss=np.asarray(trace.epoch_loss),
+                         evaluations=trace.evaluations)
 
 
 def _textures(params) -> dict[str, np.ndarray]:

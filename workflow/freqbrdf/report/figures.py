@@ -17,7 +17,7 @@ import numpy as np
 from freqbrdf.util.colour import to_srgb, tonemap
 from freqbrdf.report.metrics import parameter_error_map
 from freqbrdf.report.plots import atlas_image, pyplot, save_figure
-from freqbrdf.report.relight_metrics import hdr_pair, psnr_h
+from freqbrdf.report.relight_metrics import STANFORD_ORB, HdrScoring, hdr_pair, psnr_h
 from freqbrdf.report.tables.display import method_label  # the registry's display names, as the tables print them
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -204,9 +204,7 @@ def relight_figure(
     references: Mapping[str, tuple[np.ndarray, np.ndarray]],
     relit: Mapping[str, Mapping[str, np.ndarray]],
     title: str,
-    *,
-    clip: float = 4.0,
-    normalise: bool = True,
+    scoring: HdrScoring = STANFORD_ORB,
 ) -> dict[tuple[str, str], float]:
     """Relit renders of one view beside its ground-truth render, each with its PSNR-H,
     and under each render the squared error that PSNR-H averages.
@@ -227,8 +225,8 @@ def relight_figure(
         The same view rendered with each method's textures, in display order.
     title : str
         Figure title.
-    clip, normalise
-        As :func:`freqbrdf.report.relight_metrics.psnr_h` (config ``evaluate.hdr_clip``, ``hdr_normalise``).
+    scoring : HdrScoring
+        As :func:`freqbrdf.report.relight_metrics.psnr_h` (config ``evaluate.hdr_*``).
 
     Returns
     -------
@@ -252,7 +250,7 @@ def relight_figure(
     scores = {}
     for r, env in enumerate(envs):
         per_env = _relight_rows(fig, axes[2 * r], axes[2 * r + 1], env, *references[env], relit.get(env, {}),
-                                methods, magma, clip=clip, normalise=normalise)
+                                methods, magma, scoring)
         scores.update({(env, m): v for m, v in per_env.items()})
     _title_columns(axes, ("ground truth", *(method_label(m) for m in methods)))
     fig.suptitle(title, fontsize=10)
@@ -261,8 +259,8 @@ def relight_figure(
 
 
 def _relight_rows(fig, ax_images: np.ndarray, ax_errors: np.ndarray, env: str, reference: np.ndarray,
-                  mask: np.ndarray, relit: Mapping[str, np.ndarray], methods: Sequence[str], magma, *,
-                  clip: float, normalise: bool) -> dict[str, float]:
+                  mask: np.ndarray, relit: Mapping[str, np.ndarray], methods: Sequence[str], magma,
+                  scoring: HdrScoring) -> dict[str, float]:
     """One environment's two rows of `relight_figure`: the ground truth and each method's render
     (``relit``: method -> (H, W, 3)), under them the squared errors; returns method -> PSNR-H."""
     scores = {}
@@ -279,9 +277,9 @@ def _relight_rows(fig, ax_images: np.ndarray, ax_errors: np.ndarray, env: str, r
                 ax.text(0.5, 0.5, f"not relit\nunder {env}", ha="center", va="center", fontsize=8)
             continue
         ax_images[c].imshow(tonemap(image))
-        p, q = hdr_pair(image, reference, mask, clip=clip, normalise=normalise)
+        p, q = hdr_pair(image, reference, mask, scoring)
         errors[method] = ((p - q) ** 2).mean(axis=2)
-        scores[method] = psnr_h(image, reference, mask, clip=clip, normalise=normalise)
+        scores[method] = psnr_h(image, reference, mask, scoring)
         ax_images[c].text(0.03, 0.97, f"PSNR-H {scores[method]:.2f}", transform=ax_images[c].transAxes,
                           ha="left", va="top", fontsize=7, color="white",
                           bbox={"facecolor": "black", "alpha": 0.6, "pad": 1.5, "linewidth": 0})

@@ -312,6 +312,32 @@ def time_to_reach(elapsed_s: np.ndarray, mse: np.ndarray, target: float) -> floa
     return float(t[i - 1] + (t[i] - t[i - 1]) * (e[i - 1] - target) / (e[i - 1] - e[i]))
 
 
+# A differentiable-rendering run counts as converged when its last epoch lowered the parameter
+# MSE by less than this fraction (the criterion of the verdicts: a baseline at full strength).
+CONVERGED_CHANGE = 0.01
+
+
+def last_epoch_change(mse: np.ndarray) -> float:
+    """Relative fall of a convergence curve over its last step: ``(mse[-2] - mse[-1]) / mse[-2]``.
+
+    Parameters
+    ----------
+    mse : ndarray, shape (N,)
+        Parameter MSE after each epoch, the first the start (N >= 2).
+
+    Returns
+    -------
+    float
+        Positive while the curve still falls; 0 or less once it stalls or rises.
+    """
+    e = np.asarray(mse, dtype=np.float64)
+    if e.ndim != 1 or e.size < 2:
+        raise ValueError(f"last_epoch_change: needs at least two epochs' MSE, got shape {e.shape}")
+    if not e[-2] > 0:
+        raise ValueError(f"last_epoch_change: the MSE before the last epoch must be positive, got {e[-2]}")
+    return float((e[-2] - e[-1]) / e[-2])
+
+
 def pearson(a: np.ndarray, b: np.ndarray) -> float:
     """Pearson's r of two equally long samples (`scipy.stats.pearsonr`); NaN if either is constant."""
     # imported here: scipy.stats takes 0.9 s to import, and most users of this module never correlate

@@ -4,9 +4,53 @@ renders, within the object mask (also used on base colour textures,
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
+
 import numpy as np
 
 from freqbrdf.util.colour import to_srgb
+
+# How the per-channel scale of a relit image to its reference is fitted before PSNR-H:
+# on the clipped images, as Stanford-ORB on the raw ones, or not at all (exposure known).
+HDR_SCALES = ("clipped", "orb", "none")
+
+
+@dataclass(frozen=True)
+class HdrScoring:
+    """How PSNR-H and the clipped MSE treat linear HDR images (config ``evaluate``).
+
+    Attributes
+    ----------
+    clip : float
+        Upper clip of linear radiance (``evaluate.hdr_clip``; Stanford-ORB: 4).
+    normalise : bool
+        Stanford-ORB's exposure normalisation of PSNR-H (``evaluate.hdr_normalise``).
+    scale : {"clipped", "orb", "none"}
+        The per-channel least-squares scale of the prediction (``evaluate.hdr_scale``):
+        ``orb`` fits it on the images before clipping, as Stanford-ORB does, so a
+        reflected sun's few pixels can set it for the whole image; ``clipped`` fits it
+        on the images clipped to [0, ``clip``], the pixels the score compares;
+        ``none`` applies none, for captures whose exposure is known.
+    """
+
+    clip: float = 4.0
+    normalise: bool = True
+    scale: str = "orb"
+
+    def __post_init__(self) -> None:
+        if not self.clip > 0:
+            raise ValueError(f"hdr_clip must be positive, got {self.clip}")
+        if self.scale not in HDR_SCALES:
+            raise ValueError(f"hdr_scale must be one of {HDR_SCALES}, got {self.scale!r}")
+
+    @classmethod
+    def from_config(cls, evaluate: Mapping[str, object]) -> HdrScoring:
+        """From config ``evaluate`` (keys ``hdr_clip``, ``hdr_normalise``, ``hdr_scale``)."""
+        return cls(float(evaluate["hdr_clip"]), bool(evaluate["hdr_normalise"]), str(evaluate["hdr_scale"]))
+
+
+STANFORD_ORB = HdrScoring()
 
 
 def _check_images(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -79,7 +123,7 @@ def _psnr(mse: float) -> float:
     return float("inf") if mse == 0.0 else float(-10.0 * np.log10(mse))
 
 
-def psnr_h(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, *, clip: float = 4.0, normalise: bool = True) -> float:
+def psnr_h(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, scoring: HdrScoring = STANFORD_ORB) -> float:
     """PSNR on linear HDR (Stanford-ORB's ``psnr_hdr``), within the mask.
 
     Steps, in Stanford-ORB's order:
@@ -89,9 +133,11 @@ def psnr_h(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, *, clip: float =
        inside both sums), which brings a dark linear image to the brightness
        of its sRGB display so the clip and the error mean the same across
        exposures (ORB's ``use_gt_median``).
-    2. The prediction is scaled per channel to the reference (:func:`channel_scale`).
+    2. The prediction is scaled per channel to the reference (:func:`channel_scale`),
+       with the scale fitted as ``scoring.scale`` says (Stanford-ORB: on the
+       images before step 3).
     3. Both are clipped to [0, ``clip``], so a few very bright pixels (a
-       reflected sun) do not dominate.
+       reflected sun) do not dominate the error.
     4. ``PSNR = -10 log10(MSE)``, MSE over the masked pixels and channels.
 
     The peak is 1, not ``clip``, exactly as Stanford-ORB computes it, so the
@@ -108,22 +154,20 @@ def psnr_h(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, *, clip: float =
         Linear radiance, non-negative.
     mask : ndarray, shape (H, W), bool
         Object pixels to compare.
-    clip : float
-        Upper clip of both images after scaling.
-    normalise : bool
-        Apply step 1.
+    scoring : HdrScoring
+        The clip, step 1 and the scale's fit; default Stanford-ORB's.
 
     Returns
     -------
     float
         Decibels; ``inf`` when the scaled, clipped images are identical.
     """
-    p, r = hdr_pair(pred, ref, mask, clip=clip, normalise=normalise)
+    p, r = hdr_pair(pred, ref, mask, scoring)
     return _psnr(_mse(p, r, np.asarray(mask)))
 
 
-def hdr_pair(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, *, clip: float = 4.0,
-             normalise: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def hdr_pair(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray,
+             scoring: HdrScoring = STANFORD_ORB) -> tuple[np.ndarray, np.ndarray]:
     """The images :func:`psnr_h` compares: steps 1 to 3 of its definition applied to both.
 
     Parameters
@@ -132,7 +176,7 @@ def hdr_pair(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, *, clip: float
         Linear radiance, non-negative.
     mask : ndarray, shape (H, W), bool
         Object pixels (the exposure and the channel scales are fitted over them).
-    clip, normalise
+    scoring : HdrScoring
         As :func:`psnr_h`.
 
     Returns
@@ -142,15 +186,17 @@ def hdr_pair(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray, *, clip: float
         channels, is ``10 ** (-psnr_h / 10)``.
     """
     p, r, m = _check_images(pred, ref, mask, "psnr_h")
-    if not clip > 0:
-        raise ValueError(f"psnr_h: clip must be positive, got {clip}")
-    if normalise:
+    if scoring.normalise:
         linear = np.clip(r[m], 0.0, 1.0)
         total = linear.sum()
         if total > 0:
             gain = to_srgb(linear).sum() / total
             p, r = p * gain, r * gain
-    p = p * _channel_scale(p, r, m)
+    clip = scoring.clip
+    if scoring.scale == "orb":
+        p = p * _channel_scale(p, r, m)
+    elif scoring.scale == "clipped":
+        p = p * _channel_scale(np.clip(p, 0.0, clip), np.clip(r, 0.0, clip), m)
     return np.clip(p, 0.0, clip), np.clip(r, 0.0, clip)
 
 
@@ -253,10 +299,10 @@ def ssim(pred: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
 RELIGHT_METRICS = ("psnr_h", "psnr_l", "ssim", "mse")
 
 
-def relight_scores(
-    preds: list[np.ndarray], refs: list[np.ndarray], masks: list[np.ndarray], *, clip: float = 4.0, normalise: bool = True
-) -> dict[str, float]:
-    """Relighting metrics of one image set, each the mean over its views (as Stanford-ORB averages).
+def relight_view_scores(
+    preds: list[np.ndarray], refs: list[np.ndarray], masks: list[np.ndarray], scoring: HdrScoring = STANFORD_ORB
+) -> list[dict[str, float]]:
+    """Relighting metrics of each view of one image set.
 
     Parameters
     ----------
@@ -264,31 +310,28 @@ def relight_scores(
         Relit and reference linear HDR views, in the same order.
     masks : list of ndarray, shape (H, W), bool
         Object pixels of each view.
-    clip : float
-        Upper clip of linear radiance (:func:`psnr_h` and ``mse``).
-    normalise : bool
-        Exposure normalisation of :func:`psnr_h`.
+    scoring : HdrScoring
+        PSNR-H's settings; ``mse`` uses its clip.
 
     Returns
     -------
-    dict
-        ``psnr_h``, ``psnr_l``, ``ssim`` and ``mse``: the :func:`image_mse` of
-        linear HDR clipped to [0, ``clip``] *without* the per-channel scale, so
-        that it, unlike the other three, sees an estimate's absolute albedo
-        error (synthetic references share the renderer's exposure).
+    list of dict
+        Per view: ``psnr_h``, ``psnr_l``, ``ssim`` and ``mse``, the :func:`image_mse` of
+        linear HDR clipped to [0, ``clip``] *without* any scale, so that it, unlike
+        the other three, sees an estimate's absolute albedo error (synthetic
+        references share the renderer's exposure).
     """
     if not (len(preds) == len(refs) == len(masks)) or not preds:
         raise ValueError(f"relight_scores: {len(preds)} predictions, {len(refs)} references, {len(masks)} masks")
-    per_view = [
-        (
-            psnr_h(p, r, m, clip=clip, normalise=normalise),
-            psnr_l(p, r, m),
-            ssim(p, r, m),
-            image_mse(np.clip(p, 0.0, clip), np.clip(r, 0.0, clip), m),
-        )
-        for p, r, m in zip(preds, refs, masks)
-    ]
-    return {name: float(np.mean(values)) for name, values in zip(RELIGHT_METRICS, zip(*per_view))}
+    clip = scoring.clip
+    return [dict(zip(RELIGHT_METRICS, (psnr_h(p, r, m, scoring), psnr_l(p, r, m), ssim(p, r, m),
+                                       image_mse(np.clip(p, 0.0, clip), np.clip(r, 0.0, clip), m))))
+            for p, r, m in zip(preds, refs, masks)]
 
 
-
+def relight_scores(
+    preds: list[np.ndarray], refs: list[np.ndarray], masks: list[np.ndarray], scoring: HdrScoring = STANFORD_ORB
+) -> dict[str, float]:
+    """:func:`relight_view_scores` averaged over the views (as Stanford-ORB averages)."""
+    per_view = relight_view_scores(preds, refs, masks, scoring)
+    return {name: float(np.mean([view[name] for view in per_view])) for name in RELIGHT_METRICS}

@@ -21,6 +21,26 @@ def fmt(value: float | None, digits: int = 3, unit: str = "") -> str:
     return f"{value:.{digits}f}{unit}"
 
 
+def fmt_interval(interval, digits: int = 3, unit: str = "", sign: bool = False) -> str:
+    """A statistic and its interval, e.g. ``0.036 [0.031, 0.042]``; ``-`` for None or NaN.
+
+    Parameters
+    ----------
+    interval : freqbrdf.report.intervals.Interval or None
+    digits : int
+        Decimals.
+    unit : str
+        Appended to each number.
+    sign : bool
+        Show a + on positive numbers (differences).
+    """
+    if interval is None or math.isnan(interval.value):
+        return MISSING
+    form = f"{'+' if sign else ''}.{digits}f"
+    value, low, high = (f"{x:{form}}{unit}" for x in (interval.value, interval.low, interval.high))
+    return f"{value} [{low}, {high}]"
+
+
 def fmt_time(seconds: float | None) -> str:
     """Seconds with three significant digits, e.g. ``3.14 s``, ``105 s``."""
     if seconds is None or math.isnan(seconds):

@@ -91,12 +91,16 @@ def to_latex(table: pd.DataFrame, caption: str | None = None, label: str | None 
                            label=label, caption=latex_escape(caption) if caption else None, environment="table")
 
 
+_VERDICT_CLASSES = {"yes": "yes", "no": "no", "within noise": "noise", "not judged": "notjudged"}
+
+
 def _cell_classes(table: pd.DataFrame, verdicts: str | None) -> pd.DataFrame:
-    """CSS classes of each cell: ``notrun``, the verdict (``yes``/``no``) in column ``verdicts``, ``num``."""
+    """CSS classes of each cell: ``notrun``, the verdict (``yes``, ``no``, ``noise``, ``notjudged``) in
+    column ``verdicts``, ``num``."""
     right = dict(zip(table.columns, _right_aligned(table)))
 
     def classes(column: str, text: str) -> str:
-        verdict = text if column == verdicts and text in ("yes", "no") else ""
+        verdict = _VERDICT_CLASSES.get(text, "") if column == verdicts else ""
         return " ".join(c for c in ("notrun" if text == NOT_RUN else "", verdict, "num" if right[column] else "") if c)
 
     return pd.DataFrame({c: [classes(c, str(v)) for v in table[c]] for c in table.columns}, index=table.index)
@@ -118,8 +122,8 @@ def to_html(table: pd.DataFrame, title: str | None = None, caption: str | None =
     title, caption : str, optional
         ``<h2>`` above and a paragraph below the table.
     verdicts : str, optional
-        A column of ``yes`` / ``no`` / ``not run`` (the claims' ``holds``) whose
-        cells get the classes ``yes``, ``no`` and ``notrun``, for colour.
+        A column of verdicts (the claims' ``holds``) whose cells get the classes ``yes``,
+        ``no``, ``noise``, ``notjudged`` and ``notrun``, for colour.
         ``not run`` cells elsewhere get ``notrun`` too (greyed).
     """
     table = table.reset_index(drop=True)  # set_td_classes aligns on a unique index
@@ -144,6 +148,8 @@ th { min-width: 4em; } td.num, td.notrun { white-space: nowrap; }
 div.scroll { overflow-x: auto; max-width: 100%; }
 th { background: #eef; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
 td.yes { background: #d8f5d0; } td.no { background: #f8d0d0; } td.notrun { color: #888; }
+td.noise { background: #f8f0c8; } td.notjudged { background: #e8e8e8; }
+p.warning { background: #fde8c8; border: 1px solid #e0a050; padding: 0.5em; max-width: 60em; }
 p.caption { max-width: 60em; color: #444; }
 """
 

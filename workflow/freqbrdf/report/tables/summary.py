@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import pandas as pd
 
-from freqbrdf.report.tables.claims import claims
-from freqbrdf.report.tables.display import NOT_RUN, method_label
+from freqbrdf.report.tables.claims import ClaimContext, claims, verdict_counts
+from freqbrdf.report.tables.display import method_label
 from freqbrdf.report.tables.paper import PaperResults
 from freqbrdf.report.tables.render import HTML_STYLE, scoped_style, to_html
 from freqbrdf.report.tables.tables import (ablation_table, agreement_table, finetune_table, merge_table,
@@ -23,7 +23,8 @@ def run_facts(run: Mapping[str, object]) -> dict[str, str]:
     Parameters
     ----------
     run : mapping
-        From the run's configuration: ``seed``, ``objects``, ``real_captures``
+        From the run's configuration: ``seed``, ``preset`` (``name``, ``smoke_test``),
+        ``mitsuba`` (``epochs``, ``spp``), ``objects``, ``real_captures``
         (names), ``capture_envs``, ``envs``, ``relight_envs`` (config
         ``evaluate.relight_envs``), ``render`` (``train_views``, ``test_views``,
         ``resolution``, ``spp``), ``poses`` (config ``poses.source``) and ``methods``.
@@ -38,7 +39,11 @@ def run_facts(run: Mapping[str, object]) -> dict[str, str]:
         relit = "every environment a capture was not taken under (held out)"
     else:
         relit = "every environment" if relight == "all" else ", ".join(relight)
+    preset = run["preset"]
     return {
+        "Preset": preset["name"] + (" (a smoke test: too few captures, views and steps for its verdicts to mean "
+                                    "anything)" if preset["smoke_test"] else ""),
+        "Mitsuba budget": mitsuba_budget(run["mitsuba"]),
         "Objects": f"{', '.join(run['objects']) or 'none'} (synthetic, seeded ground truth)",
         "Real captures": ", ".join(run["real_captures"]) or "none",
         "Captured under": ", ".join(run["capture_envs"]),
@@ -49,6 +54,11 @@ def run_facts(run: Mapping[str, object]) -> dict[str, str]:
         "Methods": ", ".join(f"{method_label(m)} ({m})" for m in run["methods"]),
         "Seed": str(run["seed"]),
     }
+
+
+def mitsuba_budget(mitsuba: Mapping[str, object]) -> str:
+    """The baseline's budget as the tables label it, e.g. ``6 epochs x 8 spp``, from config ``mitsuba``."""
+    return f"{mitsuba['epochs']} epochs x {mitsuba['spp']} spp"
 
 
 # The summary sits in the report's own page: its style is scoped to its box.
@@ -68,12 +78,14 @@ def run_summary_html(facts: Mapping[str, str], claims_table: pd.DataFrame, headl
     headline : DataFrame
         From :func:`freqbrdf.report.tables.tables.headline_table`.
     """
-    counts = claims_table.holds.value_counts()
-    tally = ", ".join(f"{counts.get(v, 0)} {text}" for v, text in (("yes", "hold"), ("no", "do not hold"),
-                                                                   (NOT_RUN, "not run")))
+    tally = ", ".join(f"{n} {verdict}" for verdict, n in verdict_counts(claims_table).items())
     lines = "".join(f"<li><b>{html.escape(k)}:</b> {html.escape(v)}</li>" for k, v in facts.items())
+    warning = ""
+    if "smoke test" in facts.get("Preset", ""):
+        warning = ('<p class="warning"><b>A smoke test:</b> this run checks that every rule works, on toy sizes; '
+                   "its numbers and verdicts say nothing about the method.</p>\n")
     return (f'<div class="freqbrdf-summary"><style>{RUN_SUMMARY_STYLE}</style>\n'
-            f"<h2>This run</h2>\n<ul>{lines}</ul>\n"
+            f"<h2>This run</h2>\n{warning}<ul>{lines}</ul>\n"
             + to_html(claims_table[["claim", "holds", "ours", "paper"]], "The paper's claims on this run",
                       f"{len(claims_table)} claims: {tally}. Criteria and the paper's sources: Tables, claims.",
                       verdicts="holds")
@@ -99,7 +111,8 @@ SUMMARY_KEYS = ("table1_relighting", "table2_parameters", "table3_agreement", "t
 """Keys of `summaries`, in its order: the stems of rule tables' output files."""
 
 
-def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str] | None = None) -> list[Summary]:
+def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str] | None = None,
+              context: ClaimContext | None = None) -> list[Summary]:
     """Every summary table of the report, in the paper's order, then the claims.
 
     Parameters
@@ -111,18 +124,21 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
     env_kinds : mapping, optional
         Our environment name -> kind, to place the paper's environments
         (:func:`freqbrdf.report.tables.tables.parameter_table`).
+    context : ClaimContext, optional
+        The claims' intervals, Mitsuba's budget (which also labels its rows) and the real captures.
 
     Returns
     -------
     list of Summary
         Keyed by :data:`SUMMARY_KEYS` (the output file stems).
     """
+    context = context or ClaimContext()
     n_captures = len(df[["object", "env"]].drop_duplicates())
     n_truth = len(df[df.metric == "mse_average"][["object", "env"]].drop_duplicates())
     scope = (f"Ours: means over this run's {n_captures} capture(s), {n_truth} with ground truth "
              "(parameter MSE, relighting); times on 2 CPU cores. "
              "Paper: Wiersma et al. 2024 (arXiv 2406.17774), on an RTX 4090.")
-    return [
+    tables = [
         Summary("table1_relighting", "Table 1: relighting under held-out environments",
                 "PSNR-H (linear HDR), PSNR-L (tone-mapped) and SSIM of renders of the recovered textures "
                 "against ground-truth renders under environments not seen in training, mean over test views. "
@@ -162,7 +178,39 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "estimates; parameter MSE as in Table 2. The paper merged Mitsuba's results. " + scope,
                 merge_table(df, paper)),
         Summary("claims", "Claims of the paper, checked on this run",
-                "holds: 'yes' or 'no' by the stated criterion on this run's means; 'not run' when a method "
-                "it needs is not in the configuration's methods or produced no such metric. " + scope,
-                claims(df, paper)),
+                f"Each number: mean [{100 * context.boot.level:g}% interval], a bootstrap over captures and, within "
+                "each, over relighting environments and test views; differences paired capture by capture. "
+                "holds: 'yes' when the criterion holds at the interval's unfavourable end, 'no' when it fails "
+                "at the favourable end, 'within noise' otherwise; 'not judged' when the numbers cannot decide "
+                "it (a baseline that has not converged, no interval), 'not run' when a method it needs did "
+                "not run. " + scope,
+                claims(df, paper, context)),
     ]
+    return [Summary(s.key, s.title, s.caption, label_budget(s.table, df, context.mitsuba_budget)) for s in tables]
+
+
+def label_budget(table: pd.DataFrame, df: pd.DataFrame, budget: str) -> pd.DataFrame:
+    """The table with the ``mitsuba`` baseline's rows labelled with its budget and whether it converged.
+
+    Parameters
+    ----------
+    table : DataFrame of str
+        A summary table; its rows name methods in a ``method`` column (config names) or a
+        ``Method`` column (``Label (name)``).
+    df : DataFrame
+        Tidy metrics, for ``mitsuba_converged``.
+    budget : str
+        :func:`mitsuba_budget`; '' leaves the table as it is.
+    """
+    if not budget:
+        return table
+    converged = df[(df.method == "mitsuba") & (df.metric == "mitsuba_converged")].value.dropna()
+    state = ("converged" if len(converged) and (converged == 1.0).all() else
+             f"not converged on {int((converged != 1.0).sum())} of {len(converged)} captures" if len(converged)
+             else "convergence unknown")
+    out = table.copy()
+    ours = out["source"] == "here" if "source" in out.columns else pd.Series(True, index=out.index)
+    for column, name in (("method", "mitsuba"), ("Method", f"{method_label('mitsuba')} (mitsuba)")):
+        if column in out.columns:
+            out.loc[ours & (out[column] == name), column] = f"{name}, {budget}, {state}"
+    return out

@@ -1,8 +1,10 @@
 """Queries on the tidy metrics table, the input of every table and claim.
 
 The tidy table (`freqbrdf.layout.METRICS`) has one row per
-number, columns ``object, env, poses, method, relight_env, metric, value``
-(``relight_env`` empty for rows that are not about relighting). Metric names:
+number, columns ``object, env, poses, method, relight_env, view, metric, value``
+(``relight_env`` empty for rows that are not about relighting; ``view`` empty but for
+the relighting scores of single test views, whose mean over the views is the row
+with an empty ``view``). Metric names:
 
 - ``mse_base_color``, ``mse_roughness``, ``mse_metallic``, ``mse_average``:
   parameter MSE over observed texels (synthetic captures only);
@@ -11,20 +13,24 @@ number, columns ``object, env, poses, method, relight_env, metric, value``
   ``base_color_si_ssim``: the base colour after a per-channel scale
   (:func:`freqbrdf.report.metrics.base_color_si_scores`);
 - ``psnr_h``, ``psnr_l``, ``ssim``, ``mse`` with ``relight_env`` set: relighting
-  under a held-out environment, mean over the test views;
+  under a held-out environment, per test view and their mean;
 - ``pearson_entropy_error``: per capture, correlation of our entropy with that
   method's per-texel squared parameter error;
 - ``time_s``, ``max_rss_mb``, ``time_total_s``, ``speed_ratio_vs_mitsuba``;
 - ``mitsuba_time_to_match_s``, ``mitsuba_reached``, ``speed_ratio_equal_accuracy``:
   for the methods that need the observations, Mitsuba's time to reach their MSE
-  and its ratio to their time from the capture (a lower bound when not reached).
+  and its ratio to their time from the capture (a lower bound when not reached);
+  ``mitsuba_last_epoch_change``, ``mitsuba_converged``: whether the baseline converged.
 """
 
 from __future__ import annotations
 
+from os import PathLike
+
 import pandas as pd
 
-TIDY_COLUMNS = ("object", "env", "poses", "method", "relight_env", "metric", "value")
+TIDY_COLUMNS = ("object", "env", "poses", "method", "relight_env", "view", "metric", "value")
+_OPTIONAL = ("view",)  # a table without per-view rows may leave it out
 
 
 def check_tidy(df: pd.DataFrame) -> pd.DataFrame:
@@ -33,32 +39,79 @@ def check_tidy(df: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     df : DataFrame
-        Columns ``object, env, poses, method, relight_env, metric, value``.
+        Columns ``object, env, poses, method, relight_env, view, metric, value``; ``view``
+        may be left out.
 
     Returns
     -------
     DataFrame
-        A copy with ``method`` and ``relight_env`` as strings ('' where empty) and ``value`` as float.
+        A copy with ``method``, ``relight_env`` and ``view`` as strings ('' where empty) and
+        ``value`` as float.
 
     Raises
     ------
     ValueError
         Naming the missing columns.
     """
-    missing = [c for c in TIDY_COLUMNS if c not in df.columns]
+    missing = [c for c in TIDY_COLUMNS if c not in df.columns and c not in _OPTIONAL]
     if missing:
         raise ValueError(f"metrics table lacks columns {missing} (has {list(df.columns)})")
     out = df.copy()
+    for column in _OPTIONAL:
+        if column not in out.columns:
+            out.insert(list(TIDY_COLUMNS).index(column), column, "")
     # read_csv turns empty cells into NaN; compare them as ''. An empty method marks a
     # capture's own rows (the entropy agreement), an empty relight_env every row but relighting.
-    for column in ("method", "relight_env"):
+    for column in ("method", "relight_env", "view"):
         out[column] = out[column].fillna("").astype(str)
     out["value"] = pd.to_numeric(out["value"], errors="coerce").astype(float)
     return out
 
 
+UNIT_KEYS = ("object", "env", "poses", "relight_env", "view")
+"""The columns that name a unit of a mean: a capture's number, or one test view's relighting score."""
+
+
+def unit_values(df: pd.DataFrame, method: str, metric: str) -> pd.Series:
+    """One method's values of one metric per unit: per test view where the table holds them, else per row.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Tidy metrics (see :func:`check_tidy`).
+    method, metric : str
+
+    Returns
+    -------
+    Series
+        Indexed by :data:`UNIT_KEYS`; NaN values left out.
+    """
+    rows = df[(df.method == method) & (df.metric == metric)]
+    views = rows[rows.view != ""]
+    rows = views if len(views) else rows
+    return rows.set_index(list(UNIT_KEYS)).value.dropna()
+
+
+def read_tidy(path: str | PathLike[str]) -> pd.DataFrame:
+    """Read and check a tidy metrics CSV (``metrics.csv``): names stay strings (a test view
+    ``0001`` is not the number 1), empty cells are ''.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    DataFrame
+        As :func:`check_tidy` returns it.
+    """
+    names = {column: str for column in TIDY_COLUMNS if column != "value"}
+    return check_tidy(pd.read_csv(path, keep_default_na=False, na_values=[""], dtype=names))
+
+
 def mean_metric(df: pd.DataFrame, method: str, metric: str, **where: str) -> float | None:
-    """Mean of one metric of one method over all matching rows, or None if there are none.
+    """Mean of one metric of one method over all matching rows (per capture and relighting
+    environment: the rows of single views are left out), or None if there are none.
 
     Parameters
     ----------
@@ -68,7 +121,7 @@ def mean_metric(df: pd.DataFrame, method: str, metric: str, **where: str) -> flo
     **where : str
         Further equality filters, e.g. ``env="studio"``.
     """
-    rows = df[(df.method == method) & (df.metric == metric)]
+    rows = df[(df.method == method) & (df.metric == metric) & (df.view == "")]
     for column, value in where.items():
         rows = rows[rows[column] == value]
     values = rows.value.dropna()
