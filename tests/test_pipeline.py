@@ -167,10 +167,10 @@ def test_every_method_writes_loadable_textures_and_a_decreasing_loss(run):
         loss = pd.read_csv(estimate / "loss.tsv", sep="\t")["loss"].to_numpy()
         # From the grid start (optimise.init: grid) the 4-view tiny capture is at or near its
         # optimum at step 0: Adam's first steps overshoot (4-6x), then it settles, 1.0-1.4x the
-        # start (on the default captures it ends 13-24% below it). The descent from 0.5 is
-        # tested in tests/test_optimise.py.
-        assert len(loss) == 150 and np.isfinite(loss).all()
-        assert loss.max() > 3 * loss[-1] and loss[-1] < 1.5 * loss[0]
+        # start (on the default captures it ends 13-24% below it), so Adam keeps its best
+        # iterate, never above the start. The descent from 0.5 is tested in tests/test_optimise.py.
+        assert len(loss) == 151 and np.isfinite(loss).all()  # the start of every step, then the end
+        assert loss.max() > 3 * loss[-1] and loss[-1] < 1.5 * loss[0] and loss.min() <= loss[0]
 
 
 def test_mitsuba_methods_write_textures_and_one_loss_per_step(repo, run):
@@ -312,7 +312,8 @@ def test_tables_and_claims_follow_the_metrics(run):
                    if line.startswith("| ") and f"({method}) | here |" in line)
         assert f"| {mse:.3f} (" in row  # the run's number, in its environment's column
     claims = [line.split(" | ") for line in (tables / "claims.md").read_text().splitlines()[4:] if line.startswith("| ")]
-    assert len(claims) == 12 and all(cells[3] in ("yes", "no", "within noise", "not judged", "not run")
+    # the paper's 12, and the speed-up on real captures (the tiny run re-imports its capture)
+    assert len(claims) == 13 and all(cells[3] in ("yes", "no", "within noise", "not judged", "not run")
                                      for cells in claims)
     page = (tables / "tables.html").read_text()
     assert all(f"Table {n}:" in page for n in (1, 2, 4, 5, 6)) and "<script" not in page
