@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 from freqbrdf.methods import METHODS, ablation_method, paper_method
+from freqbrdf.report.intervals import Bootstrap
 from freqbrdf.report.tables.claims import ClaimContext, claims
 from freqbrdf.report.tables.display import MISSING, NOT_RUN, fmt_paper
 from freqbrdf.report.tables.paper import ClaimCriteria, PaperResultsError, read_paper_results
@@ -641,3 +642,18 @@ def test_run_summary_counts_the_verdicts_and_scopes_its_style():
     rules = [r for r in style.splitlines() if r.strip()]
     assert rules and all(r.startswith("div.freqbrdf-summary ") and "body" not in r for r in rules)
     assert all(part.strip().startswith("div.freqbrdf-summary ") for r in rules for part in r.split("{")[0].split(","))
+
+
+def test_the_tables_show_each_mean_with_its_interval():
+    df = _spread(full_run(), "freq", "mse_average", 0.05, 0.07)
+    df = _spread(df, "freq", "psnr_h", 25.0, 27.0)
+    tables = {s.key: s.table for s in summaries(df, PAPER, ENV_KINDS, ClaimContext())}
+    # two captures: the interval of the mean runs from one capture's value to the other's
+    assert cell(tables["table1_relighting"], "PSNR-H", method="freq") == "26.00 [25.00, 27.00]"
+    assert cell(tables["table4_ablation"], "MSE", method="freq") == "0.060 [0.050, 0.070]"
+    assert cell(tables["table2_parameters"], "Avg.", Method="Ours (freq)", source="here").startswith(
+        "0.060 [0.050, 0.070] (")
+    head = headline_table(df, Bootstrap())
+    assert cell(head, "Parameter MSE", Method="Ours (freq)") == "0.060 [0.050, 0.070]"
+    assert cell(headline_table(df), "Parameter MSE", Method="Ours (freq)") == "0.060"  # without: the mean alone
+

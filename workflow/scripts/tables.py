@@ -41,7 +41,8 @@ def main(smk, log):
     claims = next(s for s in tables if s.key == "claims")
     write_text(smk.output.claims_html, html_page("FreqBRDF: the paper's claims, checked",
                                                  to_html(claims.table, None, claims.caption, verdicts="holds")))
-    write_text(smk.output.run_summary, run_summary_html(run_facts(smk.params.run), claims.table, headline_table(metrics)))
+    write_text(smk.output.run_summary, run_summary_html(run_facts(smk.params.run), claims.table,
+                                                         headline_table(metrics, context.boot)))
     verdicts = claims.table.holds.value_counts().to_dict()
     log.info("claims: %s", ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items())))
 

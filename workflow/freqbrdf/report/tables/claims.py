@@ -19,11 +19,11 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.methods import METHODS, ablation_method
-from freqbrdf.report.intervals import NO, NOISE, NOT_JUDGED, YES, Bootstrap, Interval, all_hold, judge, mean_interval
+from freqbrdf.report.intervals import NO, NOISE, NOT_JUDGED, YES, Bootstrap, Interval, all_hold, judge
 from freqbrdf.report.tables.display import MISSING, NOT_RUN, fmt, fmt_interval, fmt_paper
 from freqbrdf.report.tables.paper import AGREEMENT_ROWS, AVERAGE, FINETUNED, MERGE_AVERAGE, MITSUBA, MITSUBA_FULL, \
     OURS, SPECTRUM, PaperResults
-from freqbrdf.report.tables.tidy import UNIT_KEYS, capture_metric, ran, unit_values, views_sweep
+from freqbrdf.report.tables.tidy import UNIT_KEYS, capture_metric, metric_interval, ran, unit_values, views_sweep
 
 __all__ = ["CLAIM_COLUMNS", "Claim", "ClaimContext", "claims", "verdict_counts"]
 
@@ -79,9 +79,7 @@ class _Judge:
         return values[is_real == real]
 
     def interval(self, values: pd.Series) -> Interval | None:
-        if values.empty:
-            return None
-        return mean_interval(values.to_numpy(), _captures(values.index), self.context.boot)
+        return metric_interval(values, self.context.boot)
 
     def mean(self, method: str, metric: str) -> Interval | None:
         return self.interval(self.values(method, metric))
@@ -93,12 +91,6 @@ class _Judge:
     def not_converged(self) -> str:
         budget = f" (budget {self.context.mitsuba_budget})" if self.context.mitsuba_budget else ""
         return f"not judged: {self.unconverged}{budget}"
-
-
-def _captures(index: pd.MultiIndex) -> list[str]:
-    """The capture of each unit (object, env, poses)."""
-    frame = index.to_frame(index=False)
-    return (frame.object + "/" + frame.env + "/" + frame.poses).tolist()
 
 
 def _time(j: _Judge, method: str) -> pd.Series:

@@ -90,7 +90,7 @@ def run_summary_html(facts: Mapping[str, str], claims_table: pd.DataFrame, headl
                       f"{len(claims_table)} claims: {tally}. Criteria and the paper's sources: Tables, claims.",
                       verdicts="holds")
             + to_html(headline, "Headline numbers",
-                      "Means over this run's captures: parameter MSE over observed texels, PSNR-H of relighting "
+                      "Means over this run's captures [95% intervals]: parameter MSE over observed texels, PSNR-H of relighting "
                       "under held-out environments, time per capture on 2 CPU cores. Every number: "
                       "Tables, metrics.csv.")
             + "</div>\n")
@@ -135,7 +135,9 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
     context = context or ClaimContext()
     n_captures = len(df[["object", "env"]].drop_duplicates())
     n_truth = len(df[df.metric == "mse_average"][["object", "env"]].drop_duplicates())
-    scope = (f"Ours: means over this run's {n_captures} capture(s), {n_truth} with ground truth "
+    scope = (f"Ours: means over this run's {n_captures} capture(s), {n_truth} with ground truth, and in brackets "
+             f"their {100 * context.boot.level:g}% bootstrap interval over captures and test views "
+             "(docs/metrics.md, Intervals); "
              "(parameter MSE, relighting); times on 2 CPU cores. "
              "Paper: Wiersma et al. 2024 (arXiv 2406.17774), on an RTX 4090.")
     tables = [
@@ -144,7 +146,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "against ground-truth renders under environments not seen in training, mean over test views. "
                 "The paper's numbers are on Stanford-ORB photographs; ours on the synthetic benchmark. "
                 "LPIPS is not computed (no network weights offline). " + scope,
-                relighting_table(df, paper)),
+                relighting_table(df, paper, context.boot)),
         Summary("table2_parameters", "Table 2: parameter MSE per capture environment",
                 "Average (base colour, roughness, metallic) MSE against the ground-truth textures over "
                 "observed texels; 'paper' rows give the paper's value for the environment of the same kind. "
@@ -153,7 +155,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "after a per-channel least-squares scale (Stanford-ORB), sRGB; both means over captures. "
                 "Error-entropy correlation: Pearson correlation between our entropy and the method's "
                 "per-texel squared error (the paper correlates with Mitsuba's). " + scope,
-                parameter_table(df, paper, env_kinds)),
+                parameter_table(df, paper, env_kinds, boot=context.boot)),
         Summary("table3_agreement", "Table 3: entropy agreement",
                 "Pearson correlation, over a seeded sample of each capture's observed texels, of each entropy "
                 "with the entropy of a grid of uniform materials (roughness x metallic x base colour) path traced "
@@ -166,17 +168,17 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "rh2001 has neither (Ramamoorthi and Hanrahan 2001). The paper's relighting numbers are on "
                 "Stanford-ORB and its MSE and time on its synthetic set, both without cosine weighting of "
                 "the samples; ours use cosine weighting. " + scope,
-                ablation_table(df, paper)),
+                ablation_table(df, paper, boot=context.boot)),
         Summary("table5_finetune", "Table 5: fine-tuning with Mitsuba",
                 "A short Mitsuba optimisation started from our textures (freq+mitsuba) against Mitsuba's "
                 "full optimisation from a constant (mitsuba) and our textures alone (freq). Total time "
                 "includes the initialisation. Rows without a method of ours are not in this pipeline. " + scope,
-                finetune_table(df, paper)),
+                finetune_table(df, paper, boot=context.boot)),
         Summary("table6_merge", "Table 6: captures merged by entropy",
                 "One texture set per object from all its captures: each texel takes the parameters of the "
                 "capture whose spectrum entropy is lowest there, against the mean of the separate captures' "
                 "estimates; parameter MSE as in Table 2. The paper merged Mitsuba's results. " + scope,
-                merge_table(df, paper)),
+                merge_table(df, paper, boot=context.boot)),
         Summary("claims", "Claims of the paper, checked on this run",
                 f"Each number: mean [{100 * context.boot.level:g}% interval], a bootstrap over captures and, within "
                 "each, over relighting environments and test views; differences paired capture by capture. "

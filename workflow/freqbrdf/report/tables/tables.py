@@ -18,10 +18,12 @@ from collections.abc import Mapping, Sequence
 import pandas as pd
 
 from freqbrdf.methods import METHODS, ablation_method, paper_method
-from freqbrdf.report.tables.display import (MISSING, NOT_RUN, fmt, fmt_paper, fmt_ratio, fmt_time, method_label,
-                                            ordered_methods)
+from freqbrdf.report.intervals import Bootstrap
+from freqbrdf.report.tables.display import (MISSING, NOT_RUN, fmt, fmt_interval, fmt_paper, fmt_ratio, fmt_time,
+                                            method_label, ordered_methods)
 from freqbrdf.report.tables.paper import AGREEMENT_ROWS, AVERAGE, MERGE_AVERAGE, MITSUBA, PaperResults
-from freqbrdf.report.tables.tidy import capture_metric, equal_accuracy_ratio, mean_metric, method_time, ran, speed_ratio
+from freqbrdf.report.tables.tidy import (capture_metric, equal_accuracy_ratio, mean_metric, method_time,
+                                         metric_interval, ran, speed_ratio, unit_values)
 
 
 def _ours(df: pd.DataFrame, method: str | None, text: str) -> str:
@@ -31,12 +33,23 @@ def _ours(df: pd.DataFrame, method: str | None, text: str) -> str:
     return text
 
 
-def _mse_cell(values: Sequence[float | None], digits: int) -> str:
-    """``avg (base, roughness, metallic)`` as in the paper's Table 2."""
+def _mse_cell(values: Sequence[float | None], digits: int, average: str | None = None) -> str:
+    """``avg (base, roughness, metallic)`` as in the paper's Table 2; ``average`` replaces the
+    first number's text (e.g. with its interval)."""
     avg, *parts = values
     if avg is None:
         return MISSING
-    return f"{fmt(avg, digits)} ({', '.join(fmt(p, digits) for p in parts)})"
+    return f"{average or fmt(avg, digits)} ({', '.join(fmt(p, digits) for p in parts)})"
+
+
+def _mean(df: pd.DataFrame, method: str | None, metric: str, digits: int, boot: Bootstrap | None) -> str:
+    """A method's mean of a metric over the captures (and test views), with its interval when
+    ``boot`` is given (:mod:`freqbrdf.report.intervals`); ``-`` when it has none."""
+    if method is None:
+        return MISSING
+    if boot is None:
+        return fmt(mean_metric(df, method, metric), digits)
+    return fmt_interval(metric_interval(unit_values(df, method, metric), boot), digits)
 
 
 _RELIGHT_METRICS = (("psnr_h", "PSNR-H", 2), ("psnr_l", "PSNR-L", 2), ("ssim", "SSIM", 3))
@@ -46,18 +59,19 @@ _BRDF_METRICS = (("brdf_log_rmse", "BRDF log-RMSE", 3), ("base_color_si_psnr", "
                  ("base_color_si_ssim", "Base SI-SSIM", 3))
 
 
-def _relight_cells(df: pd.DataFrame, method: str | None, paper: Mapping[str, float] | None) -> dict[str, str]:
+def _relight_cells(df: pd.DataFrame, method: str | None, paper: Mapping[str, float] | None,
+                   boot: Bootstrap | None = None) -> dict[str, str]:
     """PSNR-H, PSNR-L and SSIM of a method (mean over captures, relighting
-    environments and test views), each followed by the paper's value."""
+    environments and test views, with its interval when ``boot`` is given), each
+    followed by the paper's value."""
     cells = {}
     for metric, label, digits in _RELIGHT_METRICS:
-        ours = mean_metric(df, method, metric) if method else None
-        cells[label] = _ours(df, method, fmt(ours, digits))
+        cells[label] = _ours(df, method, _mean(df, method, metric, digits, boot))
         cells[f"{label} (paper)"] = fmt(paper[metric], digits) if paper else MISSING
     return cells
 
 
-def relighting_table(df: pd.DataFrame, paper: PaperResults) -> pd.DataFrame:
+def relighting_table(df: pd.DataFrame, paper: PaperResults, boot: Bootstrap | None = None) -> pd.DataFrame:
     """Paper Table 1: relighting under held-out environments, per method.
 
     Rows are the paper's (ours beside them where the registry has one, ``not
@@ -68,6 +82,8 @@ def relighting_table(df: pd.DataFrame, paper: PaperResults) -> pd.DataFrame:
     df : DataFrame
         Tidy metrics (:func:`freqbrdf.report.tables.tidy.check_tidy`).
     paper : PaperResults
+    boot : Bootstrap, optional
+        Show each mean with its interval.
 
     Returns
     -------
@@ -78,7 +94,7 @@ def relighting_table(df: pd.DataFrame, paper: PaperResults) -> pd.DataFrame:
     rows = []
     for label, values in paper.table1.items():
         method = paper_method("table1", label)
-        row = {"Method": label, "method": method or MISSING, **_relight_cells(df, method, values)}
+        row = {"Method": label, "method": method or MISSING, **_relight_cells(df, method, values, boot)}
         row["Time"] = _ours(df, method, fmt_time(method_time(df, method)) if method else MISSING)
         row["Time (paper)"] = fmt_time(values["time_s"])
         row |= _speed_cells(df, method, paper.table1[MITSUBA]["time_s"] / values["time_s"])
@@ -87,7 +103,7 @@ def relighting_table(df: pd.DataFrame, paper: PaperResults) -> pd.DataFrame:
     for method in ordered_methods(df[df.relight_env != ""].method):
         if method in listed:
             continue
-        row = {"Method": method_label(method), "method": method, **_relight_cells(df, method, None)}
+        row = {"Method": method_label(method), "method": method, **_relight_cells(df, method, None, boot)}
         row["Time"] = fmt_time(method_time(df, method))
         row["Time (paper)"] = MISSING
         row |= _speed_cells(df, method, None)
@@ -118,7 +134,7 @@ def _paper_column(env: str, env_kinds: Mapping[str, str], paper: PaperResults) -
 
 
 def _mse_rows(df: pd.DataFrame, paper: PaperResults, headers: Mapping[str, str],
-              env_kinds: Mapping[str, str], digits: int) -> list[dict[str, str]]:
+              env_kinds: Mapping[str, str], digits: int, boot: Bootstrap | None) -> list[dict[str, str]]:
     """The MSE rows of Table 2: the paper's rows, each with ours below, then our other methods."""
     paired = [(label, paper_method("table2", label)) for label in paper.table2]
     listed = {method for _, method in paired}
@@ -139,7 +155,8 @@ def _mse_rows(df: pd.DataFrame, paper: PaperResults, headers: Mapping[str, str],
         for env, header in headers.items():
             parts = [mean_metric(df, method, p, env=env) for p in _MSE_METRICS]
             row[header] = _ours(df, method, _mse_cell(parts, digits))
-        row["Avg."] = _ours(df, method, _mse_cell([mean_metric(df, method, p) for p in _MSE_METRICS], digits))
+        average = _mean(df, method, "mse_average", digits, boot) if boot else None
+        row["Avg."] = _ours(df, method, _mse_cell([mean_metric(df, method, p) for p in _MSE_METRICS], digits, average))
         for metric, label, decimals in _BRDF_METRICS:
             row[label] = _ours(df, method, fmt(mean_metric(df, method, metric), decimals))
         row["Time"] = _ours(df, method, fmt_time(method_time(df, method)))
@@ -174,7 +191,7 @@ def _correlation_rows(df: pd.DataFrame, paper: PaperResults, headers: Mapping[st
 
 
 def parameter_table(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str] | None = None,
-                    digits: int = 3) -> pd.DataFrame:
+                    digits: int = 3, boot: Bootstrap | None = None) -> pd.DataFrame:
     """Paper Table 2: parameter MSE per capture environment, with the error-entropy correlation.
 
     Cells read ``average (base colour, roughness, metallic)``, means over
@@ -194,6 +211,8 @@ def parameter_table(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[st
         ``overcast``); by default an environment's name is its kind.
     digits : int
         Decimals of our numbers (the paper prints 2).
+    boot : Bootstrap, optional
+        Show our average MSE over all captures with its interval.
 
     Returns
     -------
@@ -205,12 +224,12 @@ def parameter_table(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[st
     for env in _ordered_envs(df, env_kinds):
         column = _paper_column(env, env_kinds, paper)
         headers[env] = f"{env} [paper: {column}]" if column else env
-    rows = _mse_rows(df, paper, headers, env_kinds, digits) + _correlation_rows(df, paper, headers, env_kinds)
+    rows = _mse_rows(df, paper, headers, env_kinds, digits, boot) + _correlation_rows(df, paper, headers, env_kinds)
     columns = ["Method", "source", *headers.values(), "Avg.", *(label for _, label, _ in _BRDF_METRICS), "Time"]
     return pd.DataFrame(rows, columns=columns).fillna(MISSING)
 
 
-def ablation_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd.DataFrame:
+def ablation_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot: Bootstrap | None = None) -> pd.DataFrame:
     """Paper Table 4: the BRDF model with and without shadowing and masking.
 
     Our relighting metrics (synthetic, held-out environments) stand beside the
@@ -226,8 +245,8 @@ def ablation_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd
     for values in paper.table4.values():
         method = ablation_method(values.shadowing, values.masking)
         row = {"Shadowing": "yes" if values.shadowing else "no", "Masking": "yes" if values.masking else "no",
-               "method": method, **_relight_cells(df, method, values.values)}
-        row["MSE"] = _ours(df, method, fmt(mean_metric(df, method, "mse_average"), digits))
+               "method": method, **_relight_cells(df, method, values.values, boot)}
+        row["MSE"] = _ours(df, method, _mean(df, method, "mse_average", digits, boot))
         row["MSE (paper)"] = fmt(values.values["mse"], 2)
         row["Time"] = _ours(df, method, fmt_time(method_time(df, method)))
         row["Time (paper)"] = fmt_time(values.values["time_s"])
@@ -235,7 +254,7 @@ def ablation_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd
     return pd.DataFrame(rows)
 
 
-def finetune_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd.DataFrame:
+def finetune_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot: Bootstrap | None = None) -> pd.DataFrame:
     """Paper Table 5: a short Mitsuba fine-tuning pass from different initialisations.
 
     Our parameter MSE is added (the paper reports none for this table).
@@ -248,15 +267,15 @@ def finetune_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd
     rows = []
     for label, values in paper.table5.items():
         method = paper_method("table5", label)
-        row = {"Initialization": label, "method": method or MISSING, **_relight_cells(df, method, values)}
-        row["MSE"] = _ours(df, method, fmt(mean_metric(df, method, "mse_average"), digits) if method else MISSING)
+        row = {"Initialization": label, "method": method or MISSING, **_relight_cells(df, method, values, boot)}
+        row["MSE"] = _ours(df, method, _mean(df, method, "mse_average", digits, boot))
         row["Total time"] = _ours(df, method, fmt_time(method_time(df, method)) if method else MISSING)
         row["Total time (paper)"] = fmt_time(values["time_s"])
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def merge_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd.DataFrame:
+def merge_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot: Bootstrap | None = None) -> pd.DataFrame:
     """Paper Table 6: each entropy-merged method beside the mean of the estimates it merges.
 
     Returns
@@ -276,7 +295,8 @@ def merge_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3) -> pd.Da
                                          MERGE_AVERAGE if merged_row else None),
                                         (method, method_label(method), merged_row)):
             parts = [mean_metric(df, shown, f"mse_{k}") for k in ("average", "base_color", "roughness", "metallic")]
-            rows.append({"Method": label, "method": shown, "MSE": _mse_cell(parts, digits),
+            average = _mean(df, shown, "mse_average", digits, boot) if boot else None
+            rows.append({"Method": label, "method": shown, "MSE": _mse_cell(parts, digits, average),
                          "MSE (paper)": _mse_cell(paper.table6[paper_row], 2) if paper_row else MISSING})
     return pd.DataFrame(rows, columns=["Method", "method", "MSE", "MSE (paper)"])
 
@@ -314,13 +334,15 @@ def agreement_table(df: pd.DataFrame, paper: PaperResults, digits: int = 2) -> p
                                        "Time (paper)"])
 
 
-def headline_table(df: pd.DataFrame) -> pd.DataFrame:
+def headline_table(df: pd.DataFrame, boot: Bootstrap | None = None) -> pd.DataFrame:
     """The run's headline numbers: one row per method (registry order), means over the captures.
 
     Parameters
     ----------
     df : DataFrame
         Tidy metrics (:func:`freqbrdf.report.tables.tidy.check_tidy`).
+    boot : Bootstrap, optional
+        Show the MSE and PSNR-H with their intervals.
 
     Returns
     -------
@@ -330,7 +352,7 @@ def headline_table(df: pd.DataFrame) -> pd.DataFrame:
         (observed texels), PSNR-H (dB, held-out relighting) and time per capture. The
         captures' own rows (empty method: the entropy agreement) are no method's.
     """
-    rows = [{"Method": f"{method_label(m)} ({m})", "Parameter MSE": fmt(mean_metric(df, m, "mse_average")),
-             "PSNR-H": fmt(mean_metric(df, m, "psnr_h"), 2), "Time": fmt_time(method_time(df, m))}
+    rows = [{"Method": f"{method_label(m)} ({m})", "Parameter MSE": _mean(df, m, "mse_average", 3, boot),
+             "PSNR-H": _mean(df, m, "psnr_h", 2, boot), "Time": fmt_time(method_time(df, m))}
             for m in ordered_methods(df.method[df.method != ""])]
     return pd.DataFrame(rows, columns=["Method", "Parameter MSE", "PSNR-H", "Time"])

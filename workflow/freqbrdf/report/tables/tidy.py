@@ -29,6 +29,8 @@ from os import PathLike
 
 import pandas as pd
 
+from freqbrdf.report.intervals import Bootstrap, Interval, mean_interval
+
 TIDY_COLUMNS = ("object", "env", "poses", "method", "relight_env", "view", "metric", "value")
 _OPTIONAL = ("view",)  # a table without per-view rows may leave it out
 
@@ -107,6 +109,27 @@ def read_tidy(path: str | PathLike[str]) -> pd.DataFrame:
     """
     names = {column: str for column in TIDY_COLUMNS if column != "value"}
     return check_tidy(pd.read_csv(path, keep_default_na=False, na_values=[""], dtype=names))
+
+
+def metric_interval(values: pd.Series, boot: Bootstrap) -> Interval | None:
+    """The mean over captures of per-unit values (:func:`unit_values`) with its bootstrap interval.
+
+    Parameters
+    ----------
+    values : Series
+        Indexed by :data:`UNIT_KEYS`.
+    boot : Bootstrap
+
+    Returns
+    -------
+    Interval or None
+        None when there are no values.
+    """
+    if values.empty:
+        return None
+    frame = values.index.to_frame(index=False)
+    captures = (frame.object + "/" + frame.env + "/" + frame.poses).tolist()
+    return mean_interval(values.to_numpy(), captures, boot)
 
 
 def mean_metric(df: pd.DataFrame, method: str, metric: str, **where: str) -> float | None:
