@@ -21,7 +21,7 @@ def default(repo):
     return yaml.safe_load((repo / "config" / "config.yaml").read_text())
 
 
-@pytest.mark.parametrize("preset", ["paper.yaml", "tiny.yaml", "tuning.yaml", "stress.yaml"])
+@pytest.mark.parametrize("preset", ["paper.yaml", "tiny.yaml", "tuning.yaml", "stress.yaml", "benchmark.yaml"])
 def test_shipped_configs_validate(repo, schema, default, preset):
     check_config(copy.deepcopy(default), schema)
     merged = copy.deepcopy(default)
