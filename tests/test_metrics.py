@@ -189,6 +189,19 @@ def test_time_to_reach_interpolates_and_says_never():
         time_to_reach(t[::-1], mse, 0.1)
 
 
+def test_a_run_converges_when_its_last_epoch_falls_less_than_one_percent_at_a_constant_rate():
+    from freqbrdf.report.metrics import is_converged, last_epoch_change
+
+    falling, settled, rising = [0.2, 0.1, 0.09], [0.2, 0.1, 0.0995], [0.2, 0.1, 0.11]
+    assert last_epoch_change(falling) == pytest.approx(0.1)
+    assert last_epoch_change(rising) == pytest.approx(-0.1)
+    assert not is_converged(falling, "none")
+    assert is_converged(settled, "none") and is_converged(rising, "none")
+    assert not is_converged(settled, "cosine")  # the decay makes the last steps small by construction
+    with pytest.raises(ValueError, match="at least two epochs"):
+        last_epoch_change([0.1])
+
+
 # --------------------------------------------------------------------------
 # the principled BRDF that brdf_log_rmse scores
 # --------------------------------------------------------------------------

@@ -49,6 +49,8 @@ rule metrics:
         references=METRIC_REFERENCES,
         timings=[(o, e, p, m, len(method_benchmarks(o, e, p, m))) for o, e, p, m in METRIC_TIMINGS],
         methods=METHODS,
+        # a decaying learning rate makes the baseline's last epoch small by construction
+        lr_decay=config["mitsuba"]["lr_decay"],
         views=[(o, e, POSES) for o, e in VIEWS_CAPTURES],
         agreement=[(o, e, POSES) for o, e in AGREEMENT_CAPTURES],
     script:

@@ -17,7 +17,7 @@ from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
-from freqbrdf.report.metrics import (CONVERGED_CHANGE, base_color_si_scores, brdf_log_rmse, last_epoch_change,
+from freqbrdf.report.metrics import (base_color_si_scores, brdf_log_rmse, is_converged, last_epoch_change,
                                      parameter_error_map, parameter_mse, pearson, time_to_reach)
 from freqbrdf.report.tables.tidy import TIDY_COLUMNS
 from freqbrdf.report.relight_metrics import RELIGHT_METRICS, HdrScoring, relight_view_scores, scored_pixels
@@ -127,7 +127,7 @@ def equal_accuracy_rows(smk, rows, log):
     observation extraction plus ``time_total_s``). When mitsuba never gets there, the ratio
     is its whole budget over the path, a lower bound, and ``mitsuba_reached`` is 0. For
     ``mitsuba`` itself: ``mitsuba_last_epoch_change``, the relative fall of its MSE over its last
-    epoch, and ``mitsuba_converged``, 1 when that is under 1%."""
+    epoch, and ``mitsuba_converged``, 1 when that is under 1% at a constant learning rate."""
     value = {(r["object"], r["env"], r["poses"], r["method"], r["metric"]): r["value"] for r in rows}
     extraction = {key: benchmark(path)[0] for key, path in keyed(smk.params.captures, smk.input.extraction).items()}
     estimates = keyed(smk.params.synthetic, smk.input.estimates)
@@ -142,7 +142,7 @@ def equal_accuracy_rows(smk, rows, log):
         change = last_epoch_change(curve.mse_average.to_numpy())
         key = dict(object=obj, env=env, poses=poses, method="mitsuba", relight_env="")
         out += [key | dict(metric="mitsuba_last_epoch_change", value=change),
-                key | dict(metric="mitsuba_converged", value=float(change < CONVERGED_CHANGE))]
+                key | dict(metric="mitsuba_converged", value=float(is_converged(curve.mse_average, smk.params.lr_decay)))]
         for method in (m for m in smk.params.methods if METHODS[m].rule in FREQUENCY_RULES):
             target, total = value.get((obj, env, poses, method, "mse_average")), value.get((obj, env, poses, method, "time_total_s"))
             if target is None or total is None:

@@ -338,6 +338,23 @@ def last_epoch_change(mse: np.ndarray) -> float:
     return float((e[-2] - e[-1]) / e[-2])
 
 
+def is_converged(mse: np.ndarray, lr_decay: str) -> bool:
+    """Whether a differentiable-rendering run converged: its last epoch lowered the MSE by less
+    than :data:`CONVERGED_CHANGE`, at a constant learning rate.
+
+    A decaying rate (``lr_decay`` other than ``none``) makes the last epoch's steps small by
+    construction, so its change says nothing of convergence: such a run never counts.
+
+    Parameters
+    ----------
+    mse : ndarray, shape (N,)
+        Parameter MSE after each epoch, the first the start.
+    lr_decay : str
+        Config ``mitsuba.lr_decay`` of the run.
+    """
+    return lr_decay == "none" and last_epoch_change(mse) < CONVERGED_CHANGE
+
+
 def pearson(a: np.ndarray, b: np.ndarray) -> float:
     """Pearson's r of two equally long samples (`scipy.stats.pearsonr`); NaN if either is constant."""
     # imported here: scipy.stats takes 0.9 s to import, and most users of this module never correlate
