@@ -35,9 +35,10 @@ def main(smk, log):
         log.info("%d point sources outside the SH light (optimise.point_sources: %s), %.1f%% of the map's power",
                  len(light.sources.power), opt["point_sources"], 100.0 * points / (points + light.weighted_radiance.sum()))
     params, curve = optimise(obs, e, light, init=init, method=smk.wildcards.method, settings=settings)
-    if settings.solver == "adam":  # it keeps its iterate of lowest loss
-        done = f"{settings.iterations} Adam steps, loss {curve[0]:.4g} -> {curve[-1]:.4g}, kept {curve.min():.4g} " \
-               f"(after {int(np.argmin(curve))} steps)"
+    if settings.solver == "adam":
+        done = f"{settings.iterations} Adam steps, loss {curve[0]:.4g} -> {curve[-1]:.4g}"
+        if curve[-1] > curve[0]:  # it ended above its start: the iterate of lowest loss is kept
+            done += f", above the start: kept {curve.min():.4g} (after {int(np.argmin(curve))} steps)"
     else:
         done = f"{len(curve)} LM sweeps, loss {curve[0]:.4g} -> {curve[-1]:.4g} (at the last sweep's start)"
     log.info("%s: %s in %.1f s", smk.wildcards.method, done, time.perf_counter() - start)

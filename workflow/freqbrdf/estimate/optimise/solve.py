@@ -99,9 +99,10 @@ def optimise(
     loss_curve : numpy.ndarray
         The objective at the start of each Adam iteration or LM sweep
         (after that iteration's refit, if any, so it may jump at refits);
-        Adam's has one more, after its last step, and returns the iterate
-        of lowest objective; an LM run that meets ``sweep_tolerance`` early
-        has fewer entries than ``sweeps``.
+        Adam's has one more, after its last step; where that ends above the
+        first, Adam returns its iterate of lowest objective instead of the
+        last; an LM run that meets ``sweep_tolerance`` early has fewer
+        entries than ``sweeps``.
     """
     method_terms(method)  # a bad method is named before any work
     if not isinstance(settings, OptimiseSettings):
@@ -195,14 +196,16 @@ def _descend_lm(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings)
 
 def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) -> tuple[np.ndarray, np.ndarray]:
     """Adam from ``xp`` (internal order), refitting the shadowed light every ``refit_every`` steps;
-    returns the iterate of lowest objective and the objective at the start of each iteration and
-    after the last (``iterations + 1`` values).
+    returns the last iterate (or, if its objective ended above the start's, the iterate of lowest
+    objective) and the objective at the start of each iteration and after the last
+    (``iterations + 1`` values).
 
     Adam moves every parameter by about ``lr`` a step however small its gradient, so from a start
     already near the optimum (the grid start on a small capture) its iterates can wander above
-    where they began; keeping the best iterate bounds the result by the start. Objectives after a
-    refit are of the refitted light, so the choice compares each iterate under the light it was
-    scored with.
+    where they began; the fallback bounds the result by the start. It is only a guard: near its
+    end the objective is flat while the parameters still move, and its lowest point is no better
+    an estimate than the last iterate (on the default captures the lowest-objective iterate had
+    3% higher parameter MSE on average, 8% on one capture; docs/estimator.md).
     """
     xp = xp.copy()
     xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
@@ -224,6 +227,4 @@ def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) ->
         xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
         xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     curve[-1] = model.objective(xp, light.terms, settings.tv_weight)[0]
-    if curve[-1] < best_loss:
-        best = xp
-    return best, curve
+    return (xp if curve[-1] <= curve[0] else best), curve
