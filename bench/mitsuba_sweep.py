@@ -31,7 +31,7 @@ from freqbrdf.estimate.mitsuba import constant_textures, optimise_textures
 from freqbrdf.estimate.mitsuba_settings import InverseSettings
 from freqbrdf.report.metrics import parameter_mse
 from freqbrdf.scene import envmaps
-from freqbrdf.scene.cameras import Cameras, hemisphere_rig, intrinsics, mitsuba_to_world
+from freqbrdf.scene.cameras import mitsuba_to_world, rig_cameras
 from freqbrdf.scene.meshes import make_mesh
 from freqbrdf.scene.ply import write_ply
 from freqbrdf.scene.render import capture_bsdf, capture_scene, mask_scene, render_views, sunsky
@@ -71,11 +71,8 @@ def capture(mi, config: dict, obj: str, env: str, work: Path):
     envmap = envmaps.normalise(envmaps.blur(getattr(envmaps, kind)(config["envmaps"]["height"], **settings), blur),
                                config["envmaps"]["mean_radiance"])
     r = config["render"]
-    w2c = hemisphere_rig(r["train_views"], r["camera_distance"])
-    cameras = Cameras(K=np.repeat(intrinsics(r["resolution"], r["resolution"], r["fov_deg"])[None], len(w2c), axis=0),
-                      world_to_camera=w2c, width=r["resolution"], height=r["resolution"],
-                      names=tuple(f"{k:03d}" for k in range(len(w2c))))
-    to_world = np.stack([mitsuba_to_world(m) for m in w2c])
+    cameras = rig_cameras(r["train_views"], r["resolution"], r["fov_deg"], r["camera_distance"])
+    to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
     frame = dict(width=r["resolution"], height=r["resolution"], fov_x_deg=r["fov_deg"])
     scene = capture_scene(mi, path, capture_bsdf(mi, dict(truth)), envmap, spp=r["spp"], max_depth=r["max_depth"],
                           **frame)
@@ -105,9 +102,11 @@ def main() -> None:
     config = yaml.safe_load(Path(args.config).read_text()) or {}
     with_defaults(config, REPO / "config" / "config.yaml")
     config = merge_config(config, yaml.safe_load(args.override) or {}) if args.override else config
+    default = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    reported = {f"{o}/{e}" for o in default["objects"] for e in default["capture_envs"]}
     for capture_name in args.captures:
-        if capture_name.split("/")[1] in config["capture_envs"] and capture_name.split("/")[0] in ("sphere", "torus"):
-            raise SystemExit(f"{capture_name}: a reported capture; sweep the tuning set only")
+        if capture_name in reported:
+            raise SystemExit(f"{capture_name}: a capture the default run reports; sweep the tuning set only")
     mi = setup_mitsuba(args.variant, args.threads)
     out, rows = Path(args.out), []
     out.mkdir(parents=True, exist_ok=True)

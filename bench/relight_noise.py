@@ -33,21 +33,13 @@ from freqbrdf import layout
 from freqbrdf.artefacts import read_svbrdf
 from freqbrdf.config import derived_seed, with_defaults
 from freqbrdf.report.relight_metrics import HDR_SCALES, HdrScoring, psnr_h, scored_pixels
-from freqbrdf.scene.cameras import Cameras, hemisphere_rig, intrinsics, mitsuba_to_world
+from freqbrdf.scene.cameras import mitsuba_to_world, rig_cameras
 from freqbrdf.scene.render import mask_scene, relit_views, render_views
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.util.io import read_exr
 from freqbrdf.util.mitsuba_setup import setup_mitsuba
 
 SEEDINGS = ("shared", "independent", "high")  # the run's spp with the reference's seed, another seed; --high-spp
-
-
-def test_rig(render: dict, views: int) -> Cameras:
-    """The run's test rig (rule render_capture's, split test) with ``views`` views."""
-    size = render["resolution"]
-    w2c = hemisphere_rig(views, render["camera_distance"], azimuth_deg=render["test_azimuth_deg"])
-    return Cameras(K=np.repeat(intrinsics(size, size, render["fov_deg"])[None], len(w2c), axis=0),
-                   world_to_camera=w2c, width=size, height=size, names=tuple(f"{k:03d}" for k in range(len(w2c))))
 
 
 def held_out(config: dict, env: str) -> list[str]:
@@ -103,7 +95,9 @@ def main() -> None:
     render, root = config["render"], args.results
     mi = setup_mitsuba(args.variant, args.threads)
     print(f"variant {mi.variant()}", flush=True)
-    cameras = test_rig(render, args.views)
+    # the run's test rig (rule render_capture's, split test) with --views views
+    cameras = rig_cameras(args.views, render["resolution"], render["fov_deg"], render["camera_distance"],
+                          azimuth_deg=render["test_azimuth_deg"])
     to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
     frame = dict(width=cameras.width, height=cameras.height, fov_x_deg=render["fov_deg"])
     mesh = layout.located(layout.OBJECT_MESH, root, object=obj)

@@ -36,7 +36,7 @@ import yaml
 
 from freqbrdf import layout
 from freqbrdf.artefacts import read_observations, sample_texels
-from freqbrdf.scene.cameras import Cameras, hemisphere_rig, intrinsics
+from freqbrdf.scene.cameras import rig_cameras
 from freqbrdf.util.io import read_exr
 from freqbrdf.util.mitsuba_setup import setup_mitsuba
 from freqbrdf.capture.observations import band_limit_parameter, band_limited_envmap
@@ -68,10 +68,8 @@ def main() -> None:
     capture = {"object": args.object, "env": args.env, "poses": "gt"}
     obs = read_observations(layout.located(layout.OBSERVATIONS, args.results, **capture))
     envmap = read_exr(layout.located(layout.ENVMAP, args.results, env=args.env))
-    w2c = hemisphere_rig(settings["candidates"], render["camera_distance"], settings["candidate_azimuth_deg"])
-    size = render["resolution"]
-    cameras = Cameras(np.repeat(intrinsics(size, size, render["fov_deg"])[None], len(w2c), axis=0), w2c, size, size,
-                      tuple(f"candidate_{k:03d}" for k in range(len(w2c))))
+    cameras = rig_cameras(settings["candidates"], render["resolution"], render["fov_deg"], render["camera_distance"],
+                          azimuth_deg=settings["candidate_azimuth_deg"], prefix="candidate_")
     n_capture = len(obs.meta["views"])
     a_prime = band_limit_parameter(n_capture + settings["select"], config["observations"]["band_limit"])
     incoming_map = band_limited_envmap(envmap, a_prime)

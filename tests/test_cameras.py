@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from freqbrdf.scene.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics, look_at, mitsuba_to_world, project
+from freqbrdf.scene.cameras import (Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics, look_at,
+                                    mitsuba_to_world, project, rig_cameras)
 
 
 def test_look_at_is_rigid_and_opencv_oriented():
@@ -66,3 +67,12 @@ def test_json_round_trip_and_errors():
     del broken["frames"][1]["K"]
     with pytest.raises(ValueError, match="cams.json: malformed"):
         cameras_from_json(broken, source="cams.json")
+
+
+def test_a_rig_of_cameras_is_the_hemisphere_rig_with_shared_intrinsics_and_numbered_names():
+    cameras = rig_cameras(5, 64, 35.0, 4.0, azimuth_deg=17.0, prefix="candidate_")
+    np.testing.assert_array_equal(cameras.world_to_camera, hemisphere_rig(5, 4.0, azimuth_deg=17.0))
+    np.testing.assert_array_equal(cameras.K, np.repeat(intrinsics(64, 64, 35.0)[None], 5, axis=0))
+    assert (cameras.width, cameras.height) == (64, 64)
+    assert cameras.names == ("candidate_000", "candidate_001", "candidate_002", "candidate_003", "candidate_004")
+    assert rig_cameras(2, 8, 35.0, 4.0).names == ("000", "001")

@@ -50,7 +50,7 @@ def test_the_interval_covers_the_true_mean_at_its_level():
 def test_views_within_a_capture_add_their_spread():
     rng = np.random.default_rng(3)
     captures = np.repeat(np.arange(6), 8)
-    calm = rng.normal(0.0, 0.01, 48) + captures * 0.0
+    calm = rng.normal(0.0, 0.01, 48)
     noisy = rng.normal(0.0, 1.0, 48)
     boot = Bootstrap(draws=1000, seed=2)
     assert (mean_interval(noisy, captures, boot).high - mean_interval(noisy, captures, boot).low

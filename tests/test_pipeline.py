@@ -167,10 +167,10 @@ def test_every_method_writes_loadable_textures_and_a_decreasing_loss(run):
         loss = pd.read_csv(estimate / "loss.tsv", sep="\t")["loss"].to_numpy()
         # From the grid start (optimise.init: grid) the 4-view tiny capture is at or near its
         # optimum at step 0: Adam's first steps overshoot (4-6x), then it settles, 1.0-1.4x the
-        # start (on the default captures it ends 13-24% below it), so Adam keeps its best
-        # iterate, never above the start. The descent from 0.5 is tested in tests/test_optimise.py.
+        # start (on the default captures it ends 13-24% below it); where it ends above, the estimate
+        # is its lowest-loss iterate (tests/test_optimise.py, as the descent from 0.5).
         assert len(loss) == 151 and np.isfinite(loss).all()  # the start of every step, then the end
-        assert loss.max() > 3 * loss[-1] and loss[-1] < 1.5 * loss[0] and loss.min() <= loss[0]
+        assert loss.max() > 3 * loss[-1] and loss[-1] < 1.5 * loss[0]
 
 
 def test_mitsuba_methods_write_textures_and_one_loss_per_step(repo, run):

@@ -4,7 +4,7 @@ import time
 
 import numpy as np
 
-from freqbrdf.scene.cameras import Cameras, cameras_to_json, hemisphere_rig, intrinsics, mitsuba_to_world
+from freqbrdf.scene.cameras import cameras_to_json, mitsuba_to_world, rig_cameras
 from freqbrdf.artefacts import read_svbrdf
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.util.io import atomic_directory, read_exr, write_exr, write_json, write_png
@@ -18,15 +18,8 @@ def main(smk, log):
     mi = setup_mitsuba(smk.params.variant, smk.threads)
     p = smk.params
     size = p.render["resolution"]
-    w2c = hemisphere_rig(p.views, p.render["camera_distance"], azimuth_deg=p.azimuth_deg)
-    cameras = Cameras(
-        K=np.repeat(intrinsics(size, size, p.render["fov_deg"])[None], len(w2c), axis=0),
-        world_to_camera=w2c,
-        width=size,
-        height=size,
-        names=tuple(f"{k:03d}" for k in range(len(w2c))),
-    )
-    to_world = np.stack([mitsuba_to_world(m) for m in w2c])
+    cameras = rig_cameras(p.views, size, p.render["fov_deg"], p.render["camera_distance"], azimuth_deg=p.azimuth_deg)
+    to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
     frame = dict(width=size, height=size, fov_x_deg=p.render["fov_deg"])
 
     with atomic_directory(smk.output[0]) as tmp:

@@ -6,7 +6,7 @@ import time
 import numpy as np
 
 from freqbrdf.artefacts import read_observations, sample_texels
-from freqbrdf.scene.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics
+from freqbrdf.scene.cameras import cameras_from_json, cameras_to_json, rig_cameras
 from freqbrdf.util.io import atomic_path, read_exr, read_json, write_json
 from freqbrdf.util.logs import run_script
 from freqbrdf.util.mitsuba_setup import setup_mitsuba
@@ -26,11 +26,8 @@ def candidate_poses(smk):
     if "candidates" in smk.input.keys():
         return cameras_from_json(read_json(smk.input.candidates), source=smk.input.candidates)
     p, render = smk.params.settings, smk.params.render
-    w2c = hemisphere_rig(p["candidates"], render["camera_distance"], azimuth_deg=p["candidate_azimuth_deg"])
-    size = render["resolution"]
-    return Cameras(K=np.repeat(intrinsics(size, size, render["fov_deg"])[None], len(w2c), axis=0),
-                   world_to_camera=w2c, width=size, height=size,
-                   names=tuple(f"candidate_{k:03d}" for k in range(len(w2c))))
+    return rig_cameras(p["candidates"], render["resolution"], render["fov_deg"], render["camera_distance"],
+                       azimuth_deg=p["candidate_azimuth_deg"], prefix="candidate_")
 
 
 def main(smk, log):

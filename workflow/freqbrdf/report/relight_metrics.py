@@ -322,7 +322,7 @@ def relight_view_scores(
         references share the renderer's exposure).
     """
     if not (len(preds) == len(refs) == len(masks)) or not preds:
-        raise ValueError(f"relight_scores: {len(preds)} predictions, {len(refs)} references, {len(masks)} masks")
+        raise ValueError(f"relight_view_scores: {len(preds)} predictions, {len(refs)} references, {len(masks)} masks")
     clip = scoring.clip
     return [dict(zip(RELIGHT_METRICS, (psnr_h(p, r, m, scoring), psnr_l(p, r, m), ssim(p, r, m),
                                        image_mse(np.clip(p, 0.0, clip), np.clip(r, 0.0, clip), m))))

@@ -147,6 +147,32 @@ def hemisphere_rig(n: int, distance: float, azimuth_deg: float = 0.0) -> np.ndar
     return np.stack([look_at(eye) for eye in eyes])
 
 
+def rig_cameras(n: int, size: int, fov_x_deg: float, distance: float, azimuth_deg: float = 0.0,
+                prefix: str = "") -> Cameras:
+    """A :func:`hemisphere_rig` of square views with the same intrinsics, named ``{prefix}000``, ...
+
+    Parameters
+    ----------
+    n : int
+        Number of views.
+    size : int
+        Width and height, pixels.
+    fov_x_deg : float
+        Horizontal field of view.
+    distance, azimuth_deg : float
+        As :func:`hemisphere_rig`.
+    prefix : str
+        Put before each view's three-digit number.
+
+    Returns
+    -------
+    Cameras
+    """
+    w2c = hemisphere_rig(n, distance, azimuth_deg=azimuth_deg)
+    return Cameras(K=np.repeat(intrinsics(size, size, fov_x_deg)[None], len(w2c), axis=0), world_to_camera=w2c,
+                   width=size, height=size, names=tuple(f"{prefix}{k:03d}" for k in range(len(w2c))))
+
+
 def project(points: np.ndarray, K: np.ndarray, world_to_camera: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Project world points into one view or several.
 

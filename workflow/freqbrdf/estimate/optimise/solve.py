@@ -204,8 +204,7 @@ def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) ->
     already near the optimum (the grid start on a small capture) its iterates can wander above
     where they began; the fallback bounds the result by the start. It is only a guard: near its
     end the objective is flat while the parameters still move, and its lowest point is no better
-    an estimate than the last iterate (on the default captures the lowest-objective iterate had
-    3% higher parameter MSE on average, 8% on one capture; docs/estimator.md).
+    an estimate than the last iterate (docs/estimator.md measures it).
     """
     xp = xp.copy()
     xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)

@@ -23,7 +23,8 @@ from freqbrdf.report.intervals import NO, NOISE, NOT_JUDGED, YES, Bootstrap, Int
 from freqbrdf.report.tables.display import MISSING, NOT_RUN, fmt, fmt_interval, fmt_paper
 from freqbrdf.report.tables.paper import AGREEMENT_ROWS, AVERAGE, FINETUNED, MERGE_AVERAGE, MITSUBA, MITSUBA_FULL, \
     OURS, SPECTRUM, PaperResults
-from freqbrdf.report.tables.tidy import UNIT_KEYS, capture_metric, metric_interval, ran, unit_values, views_sweep
+from freqbrdf.report.tables.tidy import (capture_metric, metric_interval, mitsuba_convergence, ran, unit_values,
+                                         views_sweep)
 
 __all__ = ["CLAIM_COLUMNS", "Claim", "ClaimContext", "claims", "verdict_counts"]
 
@@ -65,10 +66,7 @@ class _Judge:
 
     def __init__(self, df: pd.DataFrame, context: ClaimContext):
         self.df, self.context = df, context
-        converged = df[(df.method == "mitsuba") & (df.metric == "mitsuba_converged")].value.dropna()
-        self.converged = bool(len(converged)) and bool((converged == 1.0).all())
-        self.unconverged = (f"Mitsuba not converged on {int((converged != 1.0).sum())} of {len(converged)} captures"
-                            if len(converged) else "Mitsuba's convergence unknown (no MSE curve)")
+        self.converged, self.state = mitsuba_convergence(df)
 
     def values(self, method: str, metric: str, real: bool | None = False) -> pd.Series:
         """Per-unit values (:func:`unit_values`), of the synthetic or real captures (None: both)."""
@@ -90,7 +88,7 @@ class _Judge:
 
     def not_converged(self) -> str:
         budget = f" (budget {self.context.mitsuba_budget})" if self.context.mitsuba_budget else ""
-        return f"not judged: {self.unconverged}{budget}"
+        return f"not judged: Mitsuba {self.state}{budget}"
 
 
 def _time(j: _Judge, method: str) -> pd.Series:
@@ -106,9 +104,9 @@ def _unjudged(claim: Claim, j: _Judge) -> Claim:
 def _versus(j: _Judge, claim: str, paper: str, a: str, b: str, metric: str, op: str, threshold: float,
             name: str, digits: int, criterion: str, unit: str = "") -> Claim:
     """A claim on the paired difference ``metric(a) - metric(b)``, both means shown beside it."""
-    mean_a, mean_b, diff = j.mean(a, metric), j.mean(b, metric), j.difference(a, b, metric)
     if not ran(j.df, a, b):
         return Claim(claim, paper, MISSING, NOT_RUN, criterion)
+    mean_a, mean_b, diff = j.mean(a, metric), j.mean(b, metric), j.difference(a, b, metric)
     if diff is None:
         return Claim(claim, paper, MISSING, NOT_JUDGED, criterion)
     ours = (f"{name} {fmt_interval(mean_a, digits)} vs {fmt_interval(mean_b, digits)}{unit}; "
@@ -282,7 +280,7 @@ def _agreement_claim(j: _Judge, paper: PaperResults) -> Claim:
     threshold = row["pearson"] - row["std"]
     values = capture_metric(j.df, "entropy_agreement_pearson_spectrum")
     angular = capture_metric(j.df, "entropy_agreement_pearson_angular")
-    r = j.interval(_per_capture(j.df, values)) if len(values) else None
+    r = j.interval(unit_values(j.df, "", "entropy_agreement_pearson_spectrum")) if len(values) else None
     return Claim(
         "The power-spectrum entropy agrees with the entropy Mitsuba's renders give",
         f"Pearson {fmt_paper(row['pearson'], 2)} \u00b1 {fmt_paper(row['std'], 2)} "
@@ -293,11 +291,6 @@ def _agreement_claim(j: _Judge, paper: PaperResults) -> Claim:
         f"mean Pearson(spectrum entropy, Mitsuba grid entropy) >= {threshold:.2f} "
         "(the paper's mean minus its standard deviation)",
     )
-
-
-def _per_capture(df: pd.DataFrame, values: pd.Series) -> pd.Series:
-    """Values of the captures' own rows (``capture_metric``) indexed as units."""
-    return pd.Series(values.to_numpy(), index=pd.MultiIndex.from_frame(df.loc[values.index, list(UNIT_KEYS)]))
 
 
 def _views_claim(j: _Judge, paper: PaperResults) -> Claim:

@@ -13,6 +13,7 @@ from freqbrdf.report.tables.claims import ClaimContext, claims, verdict_counts
 from freqbrdf.report.tables.display import method_label
 from freqbrdf.report.tables.paper import PaperResults
 from freqbrdf.report.tables.render import HTML_STYLE, scoped_style, to_html
+from freqbrdf.report.tables.tidy import mitsuba_convergence
 from freqbrdf.report.tables.tables import (ablation_table, agreement_table, finetune_table, merge_table,
                                            parameter_table, relighting_table)
 
@@ -206,10 +207,7 @@ def label_budget(table: pd.DataFrame, df: pd.DataFrame, budget: str) -> pd.DataF
     """
     if not budget:
         return table
-    converged = df[(df.method == "mitsuba") & (df.metric == "mitsuba_converged")].value.dropna()
-    state = ("converged" if len(converged) and (converged == 1.0).all() else
-             f"not converged on {int((converged != 1.0).sum())} of {len(converged)} captures" if len(converged)
-             else "convergence unknown")
+    state = mitsuba_convergence(df)[1]
     out = table.copy()
     ours = out["source"] == "here" if "source" in out.columns else pd.Series(True, index=out.index)
     for column, name in (("method", "mitsuba"), ("Method", f"{method_label('mitsuba')} (mitsuba)")):

@@ -111,6 +111,17 @@ def read_tidy(path: str | PathLike[str]) -> pd.DataFrame:
     return check_tidy(pd.read_csv(path, keep_default_na=False, na_values=[""], dtype=names))
 
 
+def mitsuba_convergence(df: pd.DataFrame) -> tuple[bool, str]:
+    """Whether the ``mitsuba`` baseline converged on every capture (``mitsuba_converged``), and
+    how the tables and claims say it: ``converged``, ``not converged on k of n captures`` or
+    ``convergence unknown`` (no MSE curve)."""
+    flags = df[(df.method == "mitsuba") & (df.metric == "mitsuba_converged")].value.dropna()
+    if flags.empty:
+        return False, "convergence unknown"
+    missed = int((flags != 1.0).sum())
+    return missed == 0, "converged" if missed == 0 else f"not converged on {missed} of {len(flags)} captures"
+
+
 def metric_interval(values: pd.Series, boot: Bootstrap) -> Interval | None:
     """The mean over captures of per-unit values (:func:`unit_values`) with its bootstrap interval.
 
