@@ -7,7 +7,7 @@ import pytest
 
 from freqbrdf.capture.exchange import blender_transforms, cameras_from_blender, export_capture, import_capture
 from freqbrdf.scene.cameras import Cameras, cameras_from_json, cameras_to_json, hemisphere_rig, intrinsics
-from freqbrdf.util.io import read_json, write_exr, write_json, write_png
+from freqbrdf.util.io import read_exr, read_json, write_exr, write_json, write_png
 from freqbrdf.scene.meshes import make_mesh
 from freqbrdf.scene.ply import read_ply, write_ply
 from synthetic import rewrite_z_up
@@ -131,8 +131,25 @@ def test_wrong_sized_mask_and_bad_environment_are_named(tmp_path):
     with pytest.raises(ValueError, match=r"orb2/envmap.exr: environment map has shape \(4, 4, 3\)"):
         _import(orb, tmp_path / "b")
     write_exr(orb / "envmap.exr", -np.ones((4, 8, 3)))
-    with pytest.raises(ValueError, match="orb2/envmap.exr: 96 negative radiance values"):
+    with pytest.raises(ValueError, match=r"orb2/envmap.exr: 32 of 32 texels are negative or non-finite \(more than 10%\)"):
         _import(orb, tmp_path / "c")
+
+
+def test_a_lossy_environment_map_is_cleaned_with_a_warning_instead_of_refused(tmp_path, caplog):
+    orb = _orb(tmp_path / "orb")
+    env = np.ones((8, 16, 3), np.float32)
+    env[3, 5] = [30.0, 30.0, 30.0]
+    env[3, 6] = [-2.0, -2.0, -2.0]
+    env[7, 14, 0] = np.nan  # outside the negative texel's region (radius 3)
+    import OpenEXR  # write_exr refuses NaN, as it should for the project's own files
+
+    OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, {"RGB": env}).write(
+        str(orb / "envmap.exr"))
+    with caplog.at_level("WARNING"):
+        _import(orb, tmp_path / "out")
+    assert "envmap.exr: 1 negative and 1 non-finite texels cleaned (1 regions, power changed by +0.000%)" in caplog.text
+    imported = read_exr(tmp_path / "out" / "env.exr")
+    assert imported.min() >= 0 and imported[7, 14, 0] == 1.0 and imported[0, 0, 0] == 1.0
 
 
 def test_a_mesh_without_uvs_stops_the_import_naming_the_source(tmp_path):
@@ -214,7 +231,8 @@ def test_ground_truth_textures_are_checked(tmp_path):
 
 
 def test_turn_envmap_rolls_whole_columns_and_fov_needs_a_centred_pinhole():
-    from freqbrdf.capture.exchange import pinhole_fov_deg, turn_envmap
+    from freqbrdf.capture.exchange import pinhole_fov_deg
+    from freqbrdf.scene.envmaps import turn_envmap
 
     env = np.arange(2 * 8 * 3, dtype=np.float32).reshape(2, 8, 3)
     np.testing.assert_array_equal(turn_envmap(env, 90.0), np.roll(env, 2, axis=1))

@@ -421,3 +421,21 @@ def test_the_optimiser_follows_the_cosine_schedule(mi, capture, monkeypatch):
                       "object.bsdf.metallic.data": 0.0},
                      {"object.bsdf.base_color.data": pytest.approx(0.02), "object.bsdf.roughness.data": pytest.approx(0.01),
                       "object.bsdf.metallic.data": 0.0}]
+
+
+def test_a_runs_settings_come_from_the_config_with_finetune_overriding_and_a_seed_per_run(repo):
+    from freqbrdf.estimate.mitsuba_settings import InverseSettings, run_settings
+
+    config = yaml.safe_load((repo / "config" / "config.yaml").read_text())
+    config["mitsuba"].update(epochs=7, spp=5, finetune={"epochs": 2, "spp": 16})
+    base = run_settings(config, "sphere", "studio", "gt", "mitsuba")
+    tuned = run_settings(config, "sphere", "studio", "gt", "freq+mitsuba")
+    assert "variant" not in base and "finetune" not in base
+    assert (base["epochs"], base["spp"]) == (7, 5) and (tuned["epochs"], tuned["spp"]) == (2, 16)
+    assert {k: v for k, v in tuned.items() if k not in ("epochs", "spp", "seed")} == {
+        k: v for k, v in base.items() if k not in ("epochs", "spp", "seed")}
+    seeds = {run_settings(config, o, e, p, m)["seed"] for o in ("sphere", "torus") for e in ("studio", "sunny")
+             for p in ("gt", "colmap") for m in ("mitsuba", "freq+mitsuba")}
+    assert len(seeds) == 16
+    assert run_settings(config, "sphere", "studio", "gt", "mitsuba") == base
+    InverseSettings(**base), InverseSettings(**tuned)

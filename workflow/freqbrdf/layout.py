@@ -23,9 +23,11 @@ OBJECT_PREVIEW = "results/objects/{object}/{texture}.png"
 ENVMAP = "results/envs/{env}.exr"
 ENVMAP_PREVIEW = "results/envs/{env}.png"
 ENVMAP_HDR = "results/envs/{env}.hdr"
+ENVMAP_SOURCE = "results/envs/{env}.json"  # where the map comes from: its kind, settings, licence, clean-up
 ENV_SPECTRUM = "results/envs/{env}_spectrum.{ext}"
 ENV_SPECTRA = "results/envs/spectra.png"
 CAPTURE = "results/captures/{object}/{env}/{split}"
+RESOURCE = "results/resources/{name}"  # packages fetched from a registry (the captured light's npm package)
 
 # Captures made elsewhere (rules/exchange.smk)
 EXPORT = "results/exports/{object}/{env}"

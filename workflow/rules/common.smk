@@ -6,7 +6,9 @@ import math
 from freqbrdf import layout
 from freqbrdf.config import derived_seed, size_factor
 from freqbrdf.dependencies import script_modules
+from freqbrdf.estimate.mitsuba_settings import run_settings
 from freqbrdf.layout import fill
+from freqbrdf.scene import hdri
 from freqbrdf.methods import FREQUENCY_RULES, METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
 from freqbrdf.sphere.brdf import TEXTURES
 
@@ -155,6 +157,15 @@ def envmap_file(wildcards):
     return fill(layout.ENVMAP, env=wildcards.env)
 
 
+# The captured light's package (freqbrdf.scene.hdri), fetched by rule fetch_hdri_package.
+HDRI_PACKAGE = fill(layout.RESOURCE, name=hdri.TARBALL)
+
+
+def env_package(wildcards):
+    """The package an environment of kind hdri is read from; nothing for a procedural one."""
+    return {"package": HDRI_PACKAGE} if config["envs"][wildcards.env]["kind"] == "hdri" else {}
+
+
 def pose_dir(wildcards):
     """Directory whose cameras.json holds the poses of a training capture:
     the capture itself (gt: the renderer's cameras) or the SfM result (colmap)."""
@@ -234,15 +245,9 @@ def mitsuba_evaluation(wildcards):
 
 
 def mitsuba_settings(wildcards):
-    """Optimiser settings of one run: config `mitsuba`, with `mitsuba.finetune`
-    overriding epochs and spp when fine-tuning; a seed per capture and method."""
-    settings = {key: value for key, value in config["mitsuba"].items() if key not in ("finetune", "variant")}
-    if METHOD_REGISTRY[wildcards.method].start is not None:
-        settings.update(config["mitsuba"]["finetune"])
-    settings["seed"] = derived_seed(
-        config["seed"], "mitsuba", wildcards.object, wildcards.env, wildcards.poses, wildcards.method
-    )
-    return settings
+    """Optimiser settings of one run (freqbrdf.estimate.mitsuba_settings.run_settings)."""
+    w = wildcards
+    return run_settings(config, w.object, w.env, w.poses, w.method)
 
 
 # ---- input functions of rules/merge.smk

@@ -1,10 +1,30 @@
-rule build_env:
-    """Equirectangular HDR environment map of one named environment."""
+rule fetch_hdri_package:
+    """The npm package @pmndrs/assets, whose captured HDR maps the hdri environments
+    use: fetched with npm pack (npm's cache makes a second fetch local) and checked
+    against npm's integrity hash."""
     input:
+        code=library("fetch_hdri_package"),
+    output:
+        HDRI_PACKAGE,
+    log:
+        layout.log("fetch_hdri_package"),
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(5),
+    script:
+        "../scripts/fetch_hdri_package.py"
+
+
+rule build_env:
+    """Equirectangular HDR environment map of one named environment: procedural, or a
+    captured map of the package, cleaned of its ringing (kind hdri)."""
+    input:
+        unpack(env_package),
         code=library("build_env"),
     output:
         exr=layout.ENVMAP,
         preview=layout.ENVMAP_PREVIEW,
+        source=layout.ENVMAP_SOURCE,
     log:
         layout.log("build_env", "{env}"),
     benchmark:

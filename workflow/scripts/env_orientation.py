@@ -6,7 +6,7 @@ import numpy as np
 
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.colour import LUMINANCE
-from freqbrdf.capture.exchange import turn_envmap
+from freqbrdf.scene.envmaps import turn_envmap
 from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views, write_exr, write_json
 from freqbrdf.util.logs import run_script
 from freqbrdf.scene.ply import read_ply

@@ -10,7 +10,7 @@ def main(smk, log):
     # Snakemake removes every output of a failed job, so a half import never survives.
     counts = import_capture(Path(smk.input.source), {"train": Path(smk.output.train), "test": Path(smk.output.test)},
                             Path(smk.output.mesh), Path(smk.output.envmap),
-                            up_axis=smk.params.up_axis, camera=smk.params.camera)
+                            up_axis=smk.params.up_axis, camera=smk.params.camera, log=log)
     log.info("imported %s (%s-up, %s cameras): %s views", smk.input.source, smk.params.up_axis, smk.params.camera, counts)
 
 

@@ -4,7 +4,8 @@ from pathlib import Path
 
 from freqbrdf.artefacts import read_svbrdf
 from freqbrdf.scene.cameras import Cameras, cameras_from_json
-from freqbrdf.capture.exchange import pinhole_fov_deg, turn_envmap
+from freqbrdf.capture.exchange import pinhole_fov_deg
+from freqbrdf.scene.envmaps import turn_envmap
 from freqbrdf.util.io import atomic_directory, read_exr, read_json, write_exr
 from freqbrdf.util.logs import run_script
 from freqbrdf.util.mitsuba_setup import setup_mitsuba

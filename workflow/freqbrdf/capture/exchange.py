@@ -36,6 +36,7 @@ principal point.
 from __future__ import annotations
 
 import hashlib
+import logging
 import math
 import os
 import shutil
@@ -44,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from freqbrdf.scene.cameras import Cameras, cameras_to_json
+from freqbrdf.scene.hdri import clean_envmap
 from freqbrdf.util.io import read_exr, read_json, read_png, write_exr, write_json, write_png
 from freqbrdf.scene.meshes import Mesh
 from freqbrdf.scene.ply import write_ply
@@ -91,22 +93,6 @@ def pinhole_fov_deg(cameras: Cameras, source: str | os.PathLike) -> float:
             and np.allclose(K[:, 0, 2], cameras.width / 2) and np.allclose(K[:, 1, 2], cameras.height / 2)):
         raise ValueError(f"{source}: needs one square-pixel focal length and a centred principal point")
     return math.degrees(2.0 * math.atan(cameras.width / (2.0 * K[0, 0, 0])))
-
-
-def turn_envmap(envmap: np.ndarray, degrees: float) -> np.ndarray:
-    """An equirect map turned about the up axis by whole columns (lossless).
-
-    Parameters
-    ----------
-    envmap : ndarray, shape (H, W, C)
-    degrees : float
-        Rotation toward increasing azimuth; rounded to a whole column.
-
-    Returns
-    -------
-    ndarray, shape (H, W, C)
-    """
-    return np.roll(envmap, int(round(degrees / 360.0 * envmap.shape[1])), axis=1)
 
 
 def cameras_from_blender(transforms: dict, width: int, height: int, source: str | Path,
@@ -268,8 +254,10 @@ def checked_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
     return mask
 
 
-def checked_envmap(path: Path) -> np.ndarray:
-    """An environment map read and checked: finite, non-negative, equirect (H, 2H), RGB.
+def checked_envmap(path: Path, log: logging.Logger | None = None) -> np.ndarray:
+    """An environment map read and checked: equirect (H, 2H), RGB, not black; a few negative
+    or non-finite texels (a lossy EXR's ringing) are cleaned (:func:`freqbrdf.scene.hdri.clean_envmap`)
+    with a warning giving their count and the power it changed.
 
     Returns
     -------
@@ -278,15 +266,15 @@ def checked_envmap(path: Path) -> np.ndarray:
     Raises
     ------
     FileNotFoundError, ValueError
-        One line naming ``path``.
+        One line naming ``path``: not an RGB equirect map, black, or more than 10% of its
+        texels negative or non-finite.
     """
-    env = read_exr(path)
+    env = read_exr(path, allow_nonfinite=True)
     if env.ndim != 3 or env.shape[2] < 3 or env.shape[1] != 2 * env.shape[0]:
         raise ValueError(f"{path}: environment map has shape {env.shape}; an RGB equirect map of (H, 2H) is needed")
-    env = env[..., :3]
-    negative = int((env < 0).sum())
-    if negative:
-        raise ValueError(f"{path}: {negative} negative radiance values in the environment map")
+    env, cleaning = clean_envmap(env[..., :3], source=str(path))
+    if cleaning:
+        (log or logging.getLogger(__name__)).warning("%s: %s", path, cleaning.describe())
     if not env.max() > 0:
         raise ValueError(f"{path}: environment map is black")
     return env
@@ -310,7 +298,7 @@ def find_mesh(source: Path) -> Path:
 
 
 def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Path, *,
-                   up_axis: str = "y", camera: str = "opengl") -> dict[str, int]:
+                   up_axis: str = "y", camera: str = "opengl", log: logging.Logger | None = None) -> dict[str, int]:
     """Convert an exchange-layout capture into native capture directories, reading every file.
 
     Every view, mask, the mesh and the environment maps are read and checked
@@ -326,6 +314,8 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
         each gets a :data:`SOURCE_RECORD` naming the user's files (:func:`capture_source`).
     mesh, envmap : Path
         Where to write the mesh (pipeline PLY layout, Y-up) and the environment map.
+    log : logging.Logger, optional
+        Where an environment map's clean-up is reported (:func:`checked_envmap`).
     up_axis : {"y", "z"}
         World up axis of the capture.
     camera : {"opengl", "opencv"}
@@ -352,7 +342,7 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
     oriented = orient_mesh(read_mesh(find_mesh(source)), up_axis)
     if not (source / "envmap.exr").is_file():
         raise FileNotFoundError(f"{source / 'envmap.exr'}: the capture's envmap.exr is missing")
-    train_env = checked_envmap(source / "envmap.exr")
+    train_env = checked_envmap(source / "envmap.exr", log)
     counts = {}
     for split, out in splits.items():
         transforms_file = source / f"transforms_{split}.json"
@@ -377,7 +367,7 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
             shutil.copyfile(image, out / "images" / f"{name}.exr")
             write_png(out / "masks" / f"{name}.png", checked_mask(mask, (height, width)))
             if per_view_envs:
-                write_exr(out / "envmaps" / f"{name}.exr", checked_envmap(source / "test_env" / f"{Path(file_path).stem}.exr"))
+                write_exr(out / "envmaps" / f"{name}.exr", checked_envmap(source / "test_env" / f"{Path(file_path).stem}.exr", log))
         write_json(out / "cameras.json", cameras_to_json(cameras))
         write_json(out / SOURCE_RECORD, {"transforms": str(transforms_file), "frames": dict(zip(cameras.names, paths))})
         counts[split] = len(cameras)

@@ -6,7 +6,7 @@ needs, each field checked on construction with a one-line error naming it.
 ``{base_color, roughness, metallic} -> number``. The schedule of a run: the
 seeded view order of each epoch (:func:`view_order`), the sampler seeds of
 each render (:func:`render_seeds`) and the learning rate's decay
-(:func:`lr_factor`).
+(:func:`lr_factor`). :func:`run_settings` reads one run's settings from the config.
 """
 
 from __future__ import annotations
@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from freqbrdf.config import derived_seed
+from freqbrdf.methods import METHODS
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.util.validation import check_choice, check_int
 
@@ -133,6 +135,21 @@ class InverseSettings:
         if isinstance(self.lr, Mapping):
             return {name: float(value) * factor for name, value in self.lr.items()}
         return float(self.lr) * factor
+
+
+def run_settings(config: Mapping, obj: str, env: str, poses: str, method: str) -> dict:
+    """The keyword arguments of :class:`InverseSettings` for one run of rule ``mitsuba``.
+
+    Config ``mitsuba`` less ``variant``, with ``mitsuba.finetune`` overriding
+    its keys when ``method`` starts from another method's estimate, and a seed
+    per capture and method (derived from config ``seed``).
+    """
+    block = config["mitsuba"]
+    settings = {key: value for key, value in block.items() if key not in ("finetune", "variant")}
+    if METHODS[method].start is not None:
+        settings.update(block["finetune"])
+    settings["seed"] = derived_seed(config["seed"], "mitsuba", obj, env, poses, method)
+    return settings
 
 
 def lr_factor(decay: str, step: int, steps: int) -> float:

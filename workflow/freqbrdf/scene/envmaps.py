@@ -280,6 +280,22 @@ def blur(envmap: np.ndarray, width: float) -> np.ndarray:
     return np.maximum(filter_equirect(envmap, gains), 0.0)
 
 
+def turn_envmap(envmap: np.ndarray, degrees: float) -> np.ndarray:
+    """An equirect map turned about the up axis by whole columns (lossless).
+
+    Parameters
+    ----------
+    envmap : ndarray, shape (H, W, C)
+    degrees : float
+        Rotation toward increasing azimuth; rounded to a whole column.
+
+    Returns
+    -------
+    ndarray, shape (H, W, C)
+    """
+    return np.roll(envmap, int(round(degrees / 360.0 * envmap.shape[1])), axis=1)
+
+
 def normalise(envmap: np.ndarray, target_mean: float) -> np.ndarray:
     """Scale ``envmap`` so its luminance-weighted mean radiance is ``target_mean``.
 
