@@ -9,7 +9,7 @@ by PIL's Lanczos filter (the artefact). Each clean-up is scored against the trut
 relative error of the SH coefficients up to degree 20 (the light the estimators see) and the
 change of the map's power.
 
-    python bench/hdri_cleaning.py   # after snakemake has fetched the package (rule fetch_hdri_package)
+    python bench/hdri_cleaning.py   # after snakemake has fetched the package (rule fetch_asset_package)
 
 Writes ``<out>/hdri_cleaning.tsv`` (map, clean-up, SH error, power change) and prints the means.
 """
@@ -25,7 +25,8 @@ from PIL import Image
 from scipy import ndimage
 
 from freqbrdf.layout import RESOURCE, fill
-from freqbrdf.scene.hdri import MAPS, TARBALL, clean_envmap, read_map
+from freqbrdf.scene.assets import TARBALL
+from freqbrdf.scene.hdri import MAPS, clean_envmap, read_map
 from freqbrdf.sphere.sampling import equirect_solid_angles
 from freqbrdf.sphere.sh import project_equirect
 

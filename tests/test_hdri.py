@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from freqbrdf.scene import hdri
+from freqbrdf.scene import assets, hdri
 from freqbrdf.sphere.sampling import equirect_solid_angles
 from freqbrdf.sphere.sh import project_equirect
 
 
 @pytest.fixture(scope="module")
 def package(tmp_path_factory):
-    """The package's tarball, fetched as rule fetch_hdri_package fetches it (npm's cache keeps it local)."""
-    return hdri.fetch_package(tmp_path_factory.mktemp("resources"))
+    """The package's tarball, fetched as rule fetch_asset_package fetches it (npm's cache keeps it local)."""
+    return assets.fetch_package(tmp_path_factory.mktemp("resources"))
 
 
 def power(env):
@@ -39,14 +39,14 @@ def test_a_map_outside_the_twelve_is_refused_naming_them(package):
 
 
 def test_a_changed_tarball_is_refused_and_a_missing_npm_is_named(package, tmp_path):
-    changed = tmp_path / hdri.TARBALL
+    changed = tmp_path / assets.TARBALL
     changed.write_bytes(package.read_bytes() + b"\0")
     with pytest.raises(RuntimeError, match=r"pmndrs-assets-1\.7\.0\.tgz: not @pmndrs/assets@1\.7\.0"):
-        hdri.fetch_package(tmp_path, npm="no-such-npm")
+        assets.fetch_package(tmp_path, npm="no-such-npm")
     with pytest.raises(RuntimeError, match=r"^no-such-npm: not found; .*@pmndrs/assets@1\.7\.0"):
-        hdri.fetch_package(tmp_path / "empty", npm="no-such-npm")
+        assets.fetch_package(tmp_path / "empty", npm="no-such-npm")
     shutil.copy(package, changed)
-    assert hdri.fetch_package(tmp_path, npm="no-such-npm") == changed  # present and intact: npm not needed
+    assert assets.fetch_package(tmp_path, npm="no-such-npm") == changed  # present and intact: npm not needed
 
 
 def ring(height=32, seed=0):

@@ -7,6 +7,7 @@ import sys
 import numpy as np
 import pytest
 
+from freqbrdf.config import merge_config
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
 from freqbrdf.scene.cameras import cameras_from_json, project
 from freqbrdf.util.io import read_exr, read_json, read_png
@@ -655,11 +656,20 @@ def comparable_metrics(workdir):
     return table.sort_values(["object", "env", "poses", "method", "relight_env", "view", "metric"]).reset_index(drop=True)
 
 
-def through_mitsuba(method):
-    """Whether differentiable rendering produced the method's textures (Dr.Jit's atomics: not bit-reproducible)."""
-    entry = METHODS.get(method)
-    return entry is not None and (entry.rule == "mitsuba" or
-                                  (entry.start is not None and through_mitsuba(entry.start)))
+# A run of the tiny preset that leaves out what costs most and matters least to the runs that check
+# where and how the workflow runs (as a module, under SLURM): Mitsuba's methods (not bit-reproducible
+# anyway) and the sweeps. Every remaining row must equal the full tiny run's.
+SLIM = {"methods": ["spectrum", "freq"], "evaluate": {"views_counts": []}, "entropy_agreement": {"captures": 0},
+        "view_selection": {"sweep_counts": []}}
+
+
+def assert_same_metrics(theirs, ours) -> None:
+    """Every row of ``theirs`` (a slim run's comparable_metrics) is in ``ours`` with the same value, to 1e-9."""
+    import pandas as pd
+
+    ours = ours.merge(theirs[["object", "env", "poses", "method", "relight_env", "view", "metric"]])
+    assert len(theirs) > 30 and len(ours) == len(theirs)
+    pd.testing.assert_frame_equal(theirs, ours, check_exact=False, rtol=1e-9, atol=1e-9)
 
 
 def consumer(repo, directory, config: dict) -> None:
@@ -711,24 +721,17 @@ def test_snakedeploy_deploys_the_workflow_without_a_warning_and_the_deployment_p
 
 def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
     """A consumer directory with only a module declaration and a partial config (the tiny preset's
-    keys alone) runs to completion, with the same numbers as the run from this repository."""
-    import pandas as pd
+    keys, slimmed like the SLURM test's run) runs its default target to completion, with the same
+    numbers as the run from this repository, bit for bit."""
     import yaml
 
-    consumer(repo, tmp_path, yaml.safe_load((repo / "config" / "tiny.yaml").read_text()))
+    config = yaml.safe_load((repo / "config" / "tiny.yaml").read_text())
+    consumer(repo, tmp_path, merge_config(config, SLIM))
     done = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2"], cwd=tmp_path,
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr[-4000:]
-
-    ours, theirs = comparable_metrics(run), comparable_metrics(tmp_path)
-    assert len(theirs) > 100 and (theirs.method == ours.method).all()
-    # Dr.Jit sums the differentiable renderer's gradients with atomics across threads, so the
-    # methods it optimises differ slightly from run to run (docs/baseline.md, "Differentiable-rendering
-    # baseline"; between two tiny runs: up to 3e-5 in PSNR-H, 7e-4 in a near-zero Pearson r);
-    # everything else is bit-identical
-    loose = ours.method.map(through_mitsuba).to_numpy()
-    for part, tol in ((~loose, 1e-9), (loose, 1e-2)):
-        pd.testing.assert_frame_equal(theirs[part], ours[part], check_exact=False, rtol=tol, atol=tol)
+    assert (tmp_path / "results/tables/claims.md").is_file()
+    assert_same_metrics(comparable_metrics(tmp_path), comparable_metrics(run))
 
 
 @pytest.fixture(scope="module")
@@ -810,12 +813,10 @@ def slurm_cluster(repo, tmp_path_factory):
 def test_the_slurm_profile_scores_the_tiny_benchmark_as_a_local_run(repo, run, slurm_cluster, tmp_path):
     """profiles/slurm on a real SLURM daemon: the frequency-domain methods' metrics equal the
     local run's bit for bit (Mitsuba's methods are left out: not bit-reproducible)."""
-    import pandas as pd
     import yaml
 
     slim = tmp_path / "slurm.yaml"
-    slim.write_text(yaml.safe_dump({"methods": ["spectrum", "freq"], "evaluate": {"views_counts": []},
-                                    "entropy_agreement": {"captures": 0}, "view_selection": {"sweep_counts": []}}))
+    slim.write_text(yaml.safe_dump(SLIM))
     groups = [f"{rule}={stage}" for stage, rules in SLURM_STAGES.items() for rule in rules]
     workdir = tmp_path / "run"
     done = snakemake(repo, workdir, "results/tables/metrics.csv", "--profile", str(repo / "profiles" / "slurm"),
@@ -824,11 +825,7 @@ def test_the_slurm_profile_scores_the_tiny_benchmark_as_a_local_run(repo, run, s
               "--resources", "mem_mb=16000", extra_config=[slim])
     submitted = re.findall(r"has been submitted with SLURM jobid (\d+)", done.stdout + done.stderr)
     assert len(set(submitted)) >= len(SLURM_STAGES)  # every stage went through sbatch
-    theirs = comparable_metrics(workdir)
-    ours = comparable_metrics(run)
-    ours = ours.merge(theirs[["object", "env", "poses", "method", "relight_env", "view", "metric"]])
-    assert len(theirs) > 30 and len(ours) == len(theirs)
-    pd.testing.assert_frame_equal(theirs, ours, check_exact=False, rtol=1e-9, atol=1e-9)
+    assert_same_metrics(comparable_metrics(workdir), comparable_metrics(run))
 
 
 def _files(workdir) -> dict[str, tuple[int, int]]:

@@ -184,7 +184,10 @@ def _check_colmap(colmap: dict[str, Any]) -> None:
 
 def _check_extra_captures(config: dict[str, Any]) -> None:
     """Real and stress captures have names of their own and consistent settings."""
-    from freqbrdf.scene.meshes import OBJECTS as CATALOGUE
+    from freqbrdf.scene.meshes import OBJECTS
+    from freqbrdf.scene.scans import SCANS
+
+    CATALOGUE = (*OBJECTS, *SCANS)
 
     for name, capture in config["real_captures"].items():
         if name in CATALOGUE:

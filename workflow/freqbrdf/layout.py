@@ -20,6 +20,7 @@ RESULTS = "results"
 OBJECT_MESH = "results/objects/{object}/mesh.ply"
 OBJECT_TEXTURE = "results/objects/{object}/{texture}.exr"
 OBJECT_PREVIEW = "results/objects/{object}/{texture}.png"
+OBJECT_SOURCE = "results/objects/{object}/source.json"  # the shape's origin and licence
 ENVMAP = "results/envs/{env}.exr"
 ENVMAP_PREVIEW = "results/envs/{env}.png"
 ENVMAP_HDR = "results/envs/{env}.hdr"

@@ -8,7 +8,7 @@ from freqbrdf.config import derived_seed, size_factor
 from freqbrdf.dependencies import script_modules
 from freqbrdf.estimate.mitsuba_settings import run_settings
 from freqbrdf.layout import fill
-from freqbrdf.scene import hdri
+from freqbrdf.scene import assets, scans
 from freqbrdf.methods import FREQUENCY_RULES, METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
 from freqbrdf.sphere.brdf import TEXTURES
 
@@ -157,13 +157,18 @@ def envmap_file(wildcards):
     return fill(layout.ENVMAP, env=wildcards.env)
 
 
-# The captured light's package (freqbrdf.scene.hdri), fetched by rule fetch_hdri_package.
-HDRI_PACKAGE = fill(layout.RESOURCE, name=hdri.TARBALL)
+# The package of the captured light and the scans (freqbrdf.scene.assets), fetched by rule fetch_asset_package.
+ASSET_PACKAGE = fill(layout.RESOURCE, name=assets.TARBALL)
+
+
+def object_package(wildcards):
+    """The package a scanned object's mesh is read from; nothing for a procedural one."""
+    return {"package": ASSET_PACKAGE} if object_shape(wildcards.object) in scans.SCANS else {}
 
 
 def env_package(wildcards):
     """The package an environment of kind hdri is read from; nothing for a procedural one."""
-    return {"package": HDRI_PACKAGE} if config["envs"][wildcards.env]["kind"] == "hdri" else {}
+    return {"package": ASSET_PACKAGE} if config["envs"][wildcards.env]["kind"] == "hdri" else {}
 
 
 def pose_dir(wildcards):

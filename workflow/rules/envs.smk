@@ -1,18 +1,18 @@
-rule fetch_hdri_package:
+rule fetch_asset_package:
     """The npm package @pmndrs/assets, whose captured HDR maps the hdri environments
-    use: fetched with npm pack (npm's cache makes a second fetch local) and checked
+    and whose scans the scanned objects use: fetched with npm pack (npm's cache makes a second fetch local) and checked
     against npm's integrity hash."""
     input:
-        code=library("fetch_hdri_package"),
+        code=library("fetch_asset_package"),
     output:
-        HDRI_PACKAGE,
+        ASSET_PACKAGE,
     log:
-        layout.log("fetch_hdri_package"),
+        layout.log("fetch_asset_package"),
     resources:
         mem_mb=memory(500),
         runtime=minutes(5),
     script:
-        "../scripts/fetch_hdri_package.py"
+        "../scripts/fetch_asset_package.py"
 
 
 rule build_env:

@@ -3,7 +3,7 @@ procedural, or a captured map of the npm package (kind hdri), cleaned of its rin
 
 import functools
 
-from freqbrdf.scene import envmaps, hdri
+from freqbrdf.scene import assets, envmaps, hdri
 from freqbrdf.util.colour import tonemap
 from freqbrdf.util.io import atomic_path, write_exr, write_json, write_png
 from freqbrdf.util.logs import run_script
@@ -24,10 +24,10 @@ def captured(smk, log, settings: dict):
     """A map of the package, cleaned, averaged down to the config's height and turned; its source record
     (``exposure`` acts on the normalised map, in main)."""
     name = settings["map"]
-    env, cleaning = hdri.clean_envmap(hdri.read_map(smk.input.package, name), source=f"{hdri.PACKAGE} map {name}")
+    env, cleaning = hdri.clean_envmap(hdri.read_map(smk.input.package, name), source=f"{assets.PACKAGE} map {name}")
     log.info("map %s: %s", name, cleaning.describe())
     env = envmaps.turn_envmap(hdri.downsample(env, smk.params.height), settings.get("rotation_deg", 0.0))
-    record = {"licence": hdri.LICENCE, "credit": hdri.CREDIT, "map": name,
+    record = {"licence": assets.LICENCE, "credit": hdri.CREDIT, "map": name,
               "cleaning": {"negative_texels": cleaning.negative, "nonfinite_texels": cleaning.nonfinite,
                            "regions": cleaning.regions, "power_change": cleaning.energy_change}}
     return env, record

@@ -1,11 +1,9 @@
 """Captured HDR light: environment maps of the npm package ``@pmndrs/assets`` and their clean-up.
 
-The package (1.7.0, CC0-1.0) holds Poly Haven environment maps as 512 x 256 EXR files
-(RGB, half float, lossy DWAB compression), each a base64 ``data:`` URI in
-``package/hdri/<name>.exr.js``. The project uses only the twelve of :data:`MAPS`; the
-package's other maps stay unseen, for judging generalisation. :func:`fetch_package` brings
-the package's tarball from the npm registry and checks its integrity; :func:`read_map`
-decodes one map from it.
+The package (:mod:`freqbrdf.scene.assets`) holds Poly Haven environment maps as 512 x 256
+EXR files (RGB, half float, lossy DWAB compression) in ``package/hdri/<name>.exr.js``. The
+project uses only the twelve of :data:`MAPS`; the package's other maps stay unseen, for
+judging generalisation. :func:`read_map` decodes one map.
 
 The maps ring around their suns and lamps: every one has negative texels (up to 13% of a
 map's power in negative lobes next to a sun), in the alternating pattern of a sharpening
@@ -16,82 +14,20 @@ neighbourhood (clamping alone would add the negative lobes' power back around ev
 
 from __future__ import annotations
 
-import base64
-import binascii
-import hashlib
 import io
-import re
-import shutil
-import subprocess
-import tarfile
-import tempfile
-from dataclasses import dataclass
 from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
+from freqbrdf.scene.assets import LICENCE, PACKAGE, VERSION, read_member
 from freqbrdf.sphere.sampling import equirect_solid_angles
 
-PACKAGE = "@pmndrs/assets"
-VERSION = "1.7.0"
-TARBALL = f"pmndrs-assets-{VERSION}.tgz"
-# npm's dist.integrity of the version: the tarball is refused unless it matches.
-INTEGRITY = "sha512-zHmKNS+3Jvu9K3zJBQfYQKT9Pn9IQt8s0q/eJC3CXKpWpyg6IBa+ivN9NgDn+fDT2AVjUh2YRZ//GXUueuAdCg=="
-LICENCE = "CC0-1.0"
 CREDIT = f"Poly Haven (polyhaven.com), via the npm package {PACKAGE} {VERSION}, {LICENCE}"
 # The maps the project may use (issue 35); the package's others stay out of every config and test.
 MAPS = ("studio", "sunset", "forest", "lobby", "city", "dawn", "warehouse", "sky", "sunrise", "venice",
         "apartment", "hall")
-HEIGHT = 256  # the package's maps are HEIGHT x 2 HEIGHT
-_DATA_URI = re.compile(rb"data:[^;,]*;base64,([A-Za-z0-9+/=]+)")
-
-
-def fetch_package(directory: Path, npm: str = "npm") -> Path:
-    """The package's tarball in ``directory``, fetched with ``npm pack`` unless already there.
-
-    Parameters
-    ----------
-    directory : Path
-        Where the tarball (:data:`TARBALL`) is kept.
-    npm : str
-        The npm executable.
-
-    Returns
-    -------
-    Path
-        ``directory / TARBALL``, its integrity checked against :data:`INTEGRITY`.
-
-    Raises
-    ------
-    RuntimeError
-        One line: npm missing or failing, or a tarball whose integrity does not match.
-    """
-    target = Path(directory) / TARBALL
-    if target.is_file():
-        check_integrity(target)
-        return target
-    if shutil.which(npm) is None:
-        raise RuntimeError(f"{npm}: not found; the captured light comes from the npm package {PACKAGE}@{VERSION} "
-                           f"(install npm, e.g. apt-get install npm, or put {TARBALL} in {directory})")
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=target.parent, prefix=".npm-pack-") as tmp:
-        done = subprocess.run([npm, "pack", f"{PACKAGE}@{VERSION}", "--pack-destination", tmp],
-                              capture_output=True, text=True, timeout=600)
-        packed = Path(tmp) / TARBALL
-        if done.returncode != 0 or not packed.is_file():
-            lines = [line for line in (done.stderr or done.stdout).splitlines() if line.strip()]
-            raise RuntimeError(f"npm pack {PACKAGE}@{VERSION} failed: {lines[-1] if lines else f'exit {done.returncode}'}")
-        check_integrity(packed)
-        packed.replace(target)
-    return target
-
-
-def check_integrity(tarball: Path) -> None:
-    """Raise RuntimeError (one line naming ``tarball``) unless its SHA-512 is npm's :data:`INTEGRITY`."""
-    digest = "sha512-" + base64.b64encode(hashlib.sha512(Path(tarball).read_bytes()).digest()).decode()
-    if digest != INTEGRITY:
-        raise RuntimeError(f"{tarball}: not {PACKAGE}@{VERSION} (its SHA-512 differs from npm's); delete it to fetch again")
 
 
 def read_map(tarball: Path, name: str) -> np.ndarray:
@@ -100,7 +36,7 @@ def read_map(tarball: Path, name: str) -> np.ndarray:
     Parameters
     ----------
     tarball : Path
-        The package's tarball (:func:`fetch_package`).
+        The package's tarball (:func:`freqbrdf.scene.assets.fetch_package`).
     name : str
         One of :data:`MAPS`.
 
@@ -119,20 +55,12 @@ def read_map(tarball: Path, name: str) -> np.ndarray:
     if name not in MAPS:
         raise ValueError(f"map {name!r} is not one of the maps the project uses: {', '.join(MAPS)}")
     member = f"package/hdri/{name}.exr.js"
+    data = read_member(tarball, member)
     try:
-        with tarfile.open(tarball, "r:gz") as tar:
-            text = tar.extractfile(member).read()
-    except (KeyError, AttributeError):
-        raise ValueError(f"{tarball}: no member {member}") from None
-    except (OSError, tarfile.TarError) as exc:
-        raise ValueError(f"{tarball}: not a readable tarball ({exc})") from None
-    match = _DATA_URI.search(text)
-    try:
-        data = base64.b64decode(match.group(1), validate=True) if match else b""
         with OpenEXR.File(io.BytesIO(data)) as exr:  # the channels are emptied on closing
             rgb = np.array(exr.channels()["RGB"].pixels, dtype=np.float32)
-    except (binascii.Error, RuntimeError, OSError, KeyError) as exc:
-        raise ValueError(f"{tarball}:{member}: not a base64 RGB EXR ({type(exc).__name__}: {exc})") from None
+    except (RuntimeError, OSError, KeyError) as exc:
+        raise ValueError(f"{tarball}:{member}: not an RGB EXR ({type(exc).__name__}: {exc})") from None
     return rgb
 
 

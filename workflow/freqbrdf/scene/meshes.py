@@ -203,7 +203,7 @@ def make_mesh(name: str, detail: int = 1) -> Mesh:
         raise ValueError(f"detail must be a positive integer, got {detail!r}")
     positions, uvs, faces, centre = builders[name](int(detail))
     positions, uvs, faces = _drop_degenerate(positions, uvs, faces)
-    positions = _normalise(positions, centre)
+    positions = normalise_positions(positions, centre)
     normals = vertex_normals(positions, faces)
     return Mesh(vertices=positions, normals=normals, uvs=uvs, faces=faces)
 
@@ -250,7 +250,7 @@ def _drop_degenerate(positions: np.ndarray, uvs: np.ndarray,
     return positions[used], uvs[used], remap[faces].astype(np.int32)
 
 
-def _normalise(positions: np.ndarray, centre: np.ndarray) -> np.ndarray:
+def normalise_positions(positions: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """Translate ``centre`` to the origin and scale so that max |p| == 1."""
     shifted = positions - centre
     return shifted / np.sqrt(np.max(np.einsum("ij,ij->i", shifted, shifted)))
