@@ -10,9 +10,10 @@ from freqbrdf.scene.ply import read_ply, write_ply
 
 
 def _write_ply(path, mesh, uv_names=("u", "v"), normals=True, extra_vertex=False, index_type="i4",
-               text=False, quads=False):
-    """A PLY in another tool's layout: float64 positions, the given uv names and index type."""
-    vertices, uvs, normals_ = mesh.vertices, mesh.uvs, mesh.normals
+               text=False, quads=False, uvs=None):
+    """A PLY in another tool's layout: float64 positions, the given uv names and index type (and
+    ``uvs`` instead of the mesh's, which a Mesh keeps in [0, 1])."""
+    vertices, uvs, normals_ = mesh.vertices, mesh.uvs if uvs is None else uvs, mesh.normals
     if extra_vertex:  # an unused vertex with no defined normal (Mitsuba renders such a mesh fine)
         vertices = np.vstack([vertices, [[9.0, 9.0, 9.0]]])
         uvs = np.vstack([uvs, [[0.5, 0.5]]])
@@ -82,6 +83,31 @@ def test_mesh_without_uvs_fails_naming_the_file(tmp_path, sphere):
     (tmp_path / "bare.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     with pytest.raises(ValueError, match="bare.obj: mesh has no texture coordinates"):
         read_mesh(tmp_path / "bare.obj")
+
+
+def test_a_mesh_without_usable_uvs_is_unwrapped_by_xatlas_with_a_warning(tmp_path, sphere, caplog):
+    from freqbrdf.scene.scans import AtlasSettings, overlapping_texels
+
+    atlas = AtlasSettings(resolution=64, padding=2)
+    mirrored = sphere.uvs.copy()
+    mirrored[:, 0] = np.where(mirrored[:, 0] > 0.5, 1.0 - mirrored[:, 0], mirrored[:, 0])  # the halves share a chart
+    cases = {"bare.ply": (None, "mesh has no texture coordinates (UVs)"),
+             "mirrored.ply": (mirrored, "UV charts overlap on"),
+             "tiled.ply": (sphere.uvs * 2.0, "UVs span [0, 2], outside the atlas [0, 1]")}
+    for name, (uvs, reason) in cases.items():
+        _write_ply(tmp_path / name, sphere, uv_names=None if uvs is None else ("u", "v"), uvs=uvs)
+        caplog.clear()
+        with caplog.at_level("WARNING"):
+            unwrapped = read_mesh(tmp_path / name, atlas)
+        assert f"{name}: {reason}" in caplog.text and "unwrapped with xatlas (64 texels, padding 2)" in caplog.text
+        assert overlapping_texels(unwrapped.uvs, unwrapped.faces, 64)[0] == 0
+        assert {tuple(v) for v in unwrapped.vertices.round(6)} == {tuple(v) for v in sphere.vertices.round(6)}
+        # the file's normals (float32 there) travel with their vertices
+        given = {tuple(v): n for v, n in zip(sphere.vertices.round(6), sphere.normals.astype(np.float32))}
+        assert all(np.allclose(given[tuple(v)], n, atol=1e-6) for v, n in zip(unwrapped.vertices.round(6), unwrapped.normals))
+    assert read_mesh(tmp_path / "mirrored.ply").uvs.max() <= 1  # without an atlas, overlaps are not checked
+    with pytest.raises(ValueError, match=r"tiled\.ply: UVs span \[0, 2\], outside the atlas \[0, 1\]"):
+        read_mesh(tmp_path / "tiled.ply")
 
 
 def test_obj_with_quads_seams_groups_and_no_normals(tmp_path):

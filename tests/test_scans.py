@@ -14,7 +14,7 @@ def package(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def meshes(package):
-    return {name: scans.scanned_mesh(package, name, resolution=256, padding=4) for name in scans.SCANS}
+    return {name: scans.scanned_mesh(package, name, scans.AtlasSettings(resolution=256, padding=4)) for name in scans.SCANS}
 
 
 def surface_area(vertices, faces):

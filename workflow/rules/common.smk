@@ -2,6 +2,7 @@
 # several rule files share, and the library modules each rule depends on. Every path
 # comes from freqbrdf.layout; each rule file defines its own input functions and targets.
 import math
+from dataclasses import asdict
 
 from freqbrdf import layout
 from freqbrdf.config import derived_seed, size_factor
@@ -159,6 +160,10 @@ def envmap_file(wildcards):
 
 # The package of the captured light and the scans (freqbrdf.scene.assets), fetched by rule fetch_asset_package.
 ASSET_PACKAGE = fill(layout.RESOURCE, name=assets.TARBALL)
+
+
+# How xatlas packs the atlas of a scan, or of an imported mesh without usable UVs.
+ATLAS = asdict(scans.AtlasSettings.from_config(config))
 
 
 def object_package(wildcards):

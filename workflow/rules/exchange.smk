@@ -66,6 +66,7 @@ rule import_capture:
         checksum=lambda wildcards: source_checksum(REAL_CAPTURES[wildcards.object]["dir"]),
         up_axis=lambda wildcards: REAL_CAPTURES[wildcards.object]["up_axis"],
         camera=lambda wildcards: REAL_CAPTURES[wildcards.object]["camera"],
+        atlas=ATLAS,
     script:
         "../scripts/import_capture.py"
 

@@ -19,7 +19,8 @@ rule build_object:
         mem_mb=memory(500),
         runtime=minutes(1),
     params:
-        meshes=config["meshes"],
+        detail=config["meshes"]["detail"],
+        atlas=ATLAS,
         textures=config["textures"],
         shape=lambda wildcards: object_shape(wildcards.object),
         seed=lambda wildcards: derived_seed(config["seed"], "object", object_shape(wildcards.object)),

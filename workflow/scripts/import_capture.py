@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from freqbrdf.capture.exchange import import_capture
+from freqbrdf.scene.scans import AtlasSettings
 from freqbrdf.util.logs import run_script
 
 
@@ -10,7 +11,8 @@ def main(smk, log):
     # Snakemake removes every output of a failed job, so a half import never survives.
     counts = import_capture(Path(smk.input.source), {"train": Path(smk.output.train), "test": Path(smk.output.test)},
                             Path(smk.output.mesh), Path(smk.output.envmap),
-                            up_axis=smk.params.up_axis, camera=smk.params.camera, log=log)
+                            up_axis=smk.params.up_axis, camera=smk.params.camera,
+                            atlas=AtlasSettings(**smk.params.atlas), log=log)
     log.info("imported %s (%s-up, %s cameras): %s views", smk.input.source, smk.params.up_axis, smk.params.camera, counts)
 
 

@@ -46,6 +46,7 @@ import numpy as np
 
 from freqbrdf.scene.cameras import Cameras, cameras_to_json
 from freqbrdf.scene.hdri import clean_envmap
+from freqbrdf.scene.scans import AtlasSettings
 from freqbrdf.util.io import read_exr, read_json, read_png, write_exr, write_json, write_png
 from freqbrdf.scene.meshes import Mesh
 from freqbrdf.scene.ply import write_ply
@@ -298,7 +299,8 @@ def find_mesh(source: Path) -> Path:
 
 
 def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Path, *,
-                   up_axis: str = "y", camera: str = "opengl", log: logging.Logger | None = None) -> dict[str, int]:
+                   up_axis: str = "y", camera: str = "opengl", atlas: AtlasSettings | None = None,
+                   log: logging.Logger | None = None) -> dict[str, int]:
     """Convert an exchange-layout capture into native capture directories, reading every file.
 
     Every view, mask, the mesh and the environment maps are read and checked
@@ -314,8 +316,11 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
         each gets a :data:`SOURCE_RECORD` naming the user's files (:func:`capture_source`).
     mesh, envmap : Path
         Where to write the mesh (pipeline PLY layout, Y-up) and the environment map.
+    atlas : AtlasSettings, optional
+        Given, a mesh without usable UVs is unwrapped by xatlas (:func:`freqbrdf.capture.mesh_io.clean_mesh`)
+        instead of refused.
     log : logging.Logger, optional
-        Where an environment map's clean-up is reported (:func:`checked_envmap`).
+        Where an environment map's clean-up and a mesh's unwrapping are reported.
     up_axis : {"y", "z"}
         World up axis of the capture.
     camera : {"opengl", "opencv"}
@@ -339,7 +344,7 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
     from freqbrdf.capture.mesh_io import read_mesh
 
     # Mesh and environment first: they are few and the most likely to be wrong.
-    oriented = orient_mesh(read_mesh(find_mesh(source)), up_axis)
+    oriented = orient_mesh(read_mesh(find_mesh(source), atlas, log), up_axis)
     if not (source / "envmap.exr").is_file():
         raise FileNotFoundError(f"{source / 'envmap.exr'}: the capture's envmap.exr is missing")
     train_env = checked_envmap(source / "envmap.exr", log)

@@ -4,18 +4,21 @@
 writes; :func:`read_mesh` is the door for a user's file. PLY goes through
 ``plyfile`` and OBJ through ``trimesh``; either way the result is cleaned the
 same way (:func:`clean_mesh`): polygons fanned into triangles, unused vertices
-dropped, normals recomputed where the file has none or non-finite ones, and
-every problem reported in one line naming the file.
+dropped, normals recomputed where the file has none or non-finite ones, a UV
+atlas computed by xatlas where the file's UVs are missing or unusable (with a
+warning), and every problem reported in one line naming the file.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 
 import numpy as np
 
 from freqbrdf.scene.meshes import Mesh, vertex_normals
+from freqbrdf.scene.scans import AtlasSettings, overlapping_texels, unwrap
 
 # Texture-coordinate property names found in the wild: the pipeline and
 # MeshLab (u v), Blender's PLY exporter (s t), and VCG / Open3D (texture_u texture_v).
@@ -51,8 +54,10 @@ def triangulate(polygons: list[np.ndarray] | np.ndarray) -> np.ndarray:
 
 
 def clean_mesh(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, normals: np.ndarray | None,
-               source: str | os.PathLike) -> Mesh:
-    """A :class:`Mesh` from raw arrays: unused vertices dropped, missing normals recomputed.
+               source: str | os.PathLike, atlas: AtlasSettings | None = None,
+               log: logging.Logger | None = None) -> Mesh:
+    """A :class:`Mesh` from raw arrays: unused vertices dropped, missing normals recomputed,
+    and, given ``atlas``, a UV atlas computed where the file's UVs are unusable.
 
     Parameters
     ----------
@@ -65,6 +70,12 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, 
         None) are replaced by area-weighted face normals.
     source : path-like
         The user's file, named in every error.
+    atlas : AtlasSettings, optional
+        Where UVs are missing, non-finite, outside [0, 1] or overlapping (more than
+        1% of the texels they cover at ``atlas.resolution``), unwrap the mesh with
+        xatlas (:func:`freqbrdf.scene.scans.unwrap`) and say so in ``log``, instead of
+        refusing it. Without it overlaps are not checked.
+    log : logging.Logger, optional
 
     Returns
     -------
@@ -73,12 +84,10 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, 
     Raises
     ------
     ValueError
-        One line naming ``source``: no UVs, no faces, indices out of range,
-        non-finite positions or UVs, UVs outside [0, 1], or vertices whose
-        normal cannot be recomputed.
+        One line naming ``source``: no faces, indices out of range, non-finite
+        positions, vertices whose normal cannot be recomputed, or (without
+        ``atlas``) unusable UVs.
     """
-    if uvs is None:
-        raise ValueError(f"{source}: mesh has no texture coordinates (UVs); the SVBRDF textures need a UV atlas")
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if len(faces) == 0:
@@ -90,16 +99,13 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, 
     remap = np.cumsum(used) - 1
     faces = remap[faces]
     vertices = vertices[used]
-    uvs = np.asarray(uvs, dtype=np.float64)[used]
+    uvs = None if uvs is None else np.asarray(uvs, dtype=np.float64)[used]
     if not np.isfinite(vertices).all():
         raise ValueError(f"{source}: {int((~np.isfinite(vertices)).any(axis=1).sum())} used vertices have non-finite positions")
-    if not np.isfinite(uvs).all():
-        raise ValueError(f"{source}: {int((~np.isfinite(uvs)).any(axis=1).sum())} used vertices have non-finite UVs")
-    # A little slack for exporters that write 1.0000001; the atlas is the unit square.
-    if uvs.min() < -1e-4 or uvs.max() > 1.0 + 1e-4:
-        raise ValueError(f"{source}: UVs span [{uvs.min():.3g}, {uvs.max():.3g}]; the atlas must lie in [0, 1] "
+    problem = uv_problem(uvs, faces, None if atlas is None else atlas.resolution)
+    if problem and atlas is None:
+        raise ValueError(f"{source}: {problem}; the SVBRDF textures need a UV atlas in [0, 1] "
                          "(tiled or UDIM layouts are not supported)")
-    uvs = np.clip(uvs, 0.0, 1.0)
     given = np.full((len(vertices), 3), np.nan) if normals is None else np.asarray(normals, dtype=np.float64)[used]
     length = np.linalg.norm(given, axis=1)
     bad = ~np.isfinite(length) | (length <= 1e-12)
@@ -110,7 +116,35 @@ def clean_mesh(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, 
             raise ValueError(f"{source}: cannot recompute normals ({exc})") from None
         given = np.where(bad[:, None], computed, given)
         length = np.where(bad, 1.0, length)
-    return Mesh(vertices=vertices, normals=given / length[:, None], uvs=uvs, faces=faces)
+    if problem:
+        (log or logging.getLogger(__name__)).warning(
+            "%s: %s: unwrapped with xatlas (%d texels, padding %d)", source, problem, atlas.resolution, atlas.padding)
+        return unwrap(vertices, faces, atlas, normals=given / length[:, None])
+    # uv_problem allows a little slack for exporters that write 1.0000001; the atlas is the unit square.
+    return Mesh(vertices=vertices, normals=given / length[:, None], uvs=np.clip(uvs, 0.0, 1.0), faces=faces)
+
+
+def uv_problem(uvs: np.ndarray | None, faces: np.ndarray, resolution: int | None) -> str:
+    """Why a mesh's UVs cannot serve as its atlas ('' when they can).
+
+    Parameters
+    ----------
+    uvs : ndarray, shape (V, 2), or None
+    faces : ndarray, shape (F, 3), int
+    resolution : int, optional
+        Texels a side at which overlaps are counted (None: not checked).
+    """
+    if uvs is None:
+        return "mesh has no texture coordinates (UVs)"
+    if not np.isfinite(uvs).all():
+        return f"{int((~np.isfinite(uvs)).any(axis=1).sum())} used vertices have non-finite UVs"
+    if uvs.min() < -1e-4 or uvs.max() > 1.0 + 1e-4:
+        return f"UVs span [{uvs.min():.3g}, {uvs.max():.3g}], outside the atlas [0, 1]"
+    if resolution is not None:
+        twice, covered = overlapping_texels(np.clip(uvs, 0.0, 1.0), faces, resolution)
+        if twice > 0.01 * max(covered, 1):
+            return f"UV charts overlap on {twice} of the {covered} texels they cover"
+    return ""
 
 
 def _ply_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
@@ -176,7 +210,8 @@ def _obj_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, 
     return np.concatenate(positions), np.concatenate(triangles), uv_all, np.concatenate(normals)
 
 
-def read_mesh(path: str | os.PathLike) -> Mesh:
+def read_mesh(path: str | os.PathLike, atlas: AtlasSettings | None = None,
+              log: logging.Logger | None = None) -> Mesh:
     """Read a user's PLY or OBJ mesh into a clean :class:`Mesh`.
 
     Parameters
@@ -185,6 +220,8 @@ def read_mesh(path: str | os.PathLike) -> Mesh:
         ``.ply`` (ASCII or binary, any property types; uv names ``u v``,
         ``s t`` or ``texture_u texture_v``) or ``.obj`` (``v``/``vt``/``vn``,
         polygons of any size, several groups).
+    atlas, log
+        See :func:`clean_mesh`: given ``atlas``, unusable UVs are replaced by xatlas'.
 
     Returns
     -------
@@ -203,4 +240,4 @@ def read_mesh(path: str | os.PathLike) -> Mesh:
     if suffix not in MESH_SUFFIXES:
         raise ValueError(f"{path}: unsupported mesh format {suffix!r} (use {' or '.join(MESH_SUFFIXES)})")
     vertices, faces, uvs, normals = (_ply_arrays if suffix == ".ply" else _obj_arrays)(path)
-    return clean_mesh(vertices, faces, uvs, normals, path)
+    return clean_mesh(vertices, faces, uvs, normals, path, atlas, log)
