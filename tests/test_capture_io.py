@@ -152,12 +152,19 @@ def test_a_lossy_environment_map_is_cleaned_with_a_warning_instead_of_refused(tm
     assert imported.min() >= 0 and imported[7, 14, 0] == 1.0 and imported[0, 0, 0] == 1.0
 
 
-def test_a_mesh_without_uvs_stops_the_import_naming_the_source(tmp_path):
+def test_a_mesh_without_uvs_is_unwrapped_at_import_or_stops_it_without_an_atlas(tmp_path, caplog):
+    from freqbrdf.scene.scans import AtlasSettings
+
     orb = _orb(tmp_path / "orb")
     (orb / "mesh.ply").unlink()
-    (orb / "mesh.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (orb / "mesh.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
     with pytest.raises(ValueError, match=r"orb/mesh.obj: mesh has no texture coordinates"):
         _import(orb, tmp_path / "out")
+    with caplog.at_level("WARNING"):
+        _import(orb, tmp_path / "unwrapped", atlas=AtlasSettings(resolution=32, padding=2))
+    assert "orb/mesh.obj: mesh has no texture coordinates (UVs): unwrapped with xatlas (32 texels" in caplog.text
+    mesh = read_ply(tmp_path / "unwrapped" / "mesh.ply")
+    assert len(mesh.faces) == 2 and mesh.uvs.min() >= 0 and mesh.uvs.max() <= 1
 
 
 def test_z_up_obj_and_opencv_cameras_give_the_y_up_capture(tmp_path):
