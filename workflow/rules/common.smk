@@ -166,6 +166,12 @@ ASSET_PACKAGE = fill(layout.RESOURCE, name=assets.TARBALL)
 ATLAS = asdict(scans.AtlasSettings.from_config(config))
 
 
+def asset_sources(wildcards):
+    """Source records (origin, licence) of a capture's object, if synthetic, and of every environment."""
+    objects = [] if wildcards.object in REAL_CAPTURES else [fill(layout.OBJECT_SOURCE, object=wildcards.object)]
+    return objects + expand(layout.ENVMAP_SOURCE, env=ENVS)
+
+
 def object_package(wildcards):
     """The package a scanned object's mesh is read from; nothing for a procedural one."""
     return {"package": ASSET_PACKAGE} if object_shape(wildcards.object) in scans.SCANS else {}

@@ -25,6 +25,7 @@ rule export_capture:
         test=fill(layout.CAPTURE, split="test"),
         mesh=layout.OBJECT_MESH,
         envmap=layout.ENVMAP,
+        sources=[layout.OBJECT_SOURCE, layout.ENVMAP_SOURCE],
         code=library("export_capture"),
     output:
         directory(layout.EXPORT),

@@ -85,6 +85,7 @@ rule viewer:
         truth=lambda w: [] if w.object in REAL_CAPTURES else [fill(layout.TRUTH_GLTF, object=w.object)],
         estimates=lambda w: [fill(layout.GLTF, object=w.object, env=w.env, poses=w.poses, method=m) for m in METHODS],
         envs=expand(layout.ENVMAP_HDR, env=ENVS),
+        sources=asset_sources,
         entropy=layout.ENTROPY,
         cameras=pose_dir,  # the page opens on the capture's first view
         web=[str(WEB_DIR / asset) for asset in WEB_ASSETS],

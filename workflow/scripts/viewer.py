@@ -9,7 +9,7 @@ from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.export.gltf import read_glb
 from freqbrdf.util.io import atomic_path, read_json
 from freqbrdf.util.logs import run_script
-from freqbrdf.export.viewer import Panel, same_mesh, viewer_html
+from freqbrdf.export.viewer import Panel, asset_credits, same_mesh, viewer_html
 
 
 def main(smk, log):
@@ -29,8 +29,9 @@ def main(smk, log):
     # vertical field of view of that view is kept.
     fov_deg = float(np.degrees(2.0 * np.arctan(0.5 * cameras.height / cameras.K[0, 1, 1])))
     envs = {name: Path(path).read_bytes() for name, path in zip(smk.params.envs, smk.input.envs, strict=True)}
+    credits = asset_credits([read_json(path) for path in smk.input.sources])
     html = viewer_html(smk.params.title, scenes[0].mesh, [s.materials[0] for s in scenes], panels, envs,
-                       read_entropy(smk.input.entropy).atlas, cameras.centres[0], fov_deg)
+                       read_entropy(smk.input.entropy).atlas, cameras.centres[0], fov_deg, credits=credits)
     with atomic_path(smk.output[0]) as tmp:
         tmp.write_text(html, encoding="utf-8")
     log.info("%s: %d panels, %d environments, %.1f MB", smk.output[0], len(panels), len(envs), len(html) / 1e6)

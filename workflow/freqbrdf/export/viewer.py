@@ -89,9 +89,20 @@ def _inline(script: str) -> str:
     return re.sub(r"</(script)", r"<\\/\1", script, flags=re.IGNORECASE)
 
 
+def asset_credits(records: Sequence[Mapping]) -> list[str]:
+    """One line per distinct third-party asset among source records (``results/envs/{env}.json``,
+    ``results/objects/{object}/source.json``): its credit and licence, in first-seen order."""
+    lines = [f"{r['credit']} ({r['licence']})" for r in records if "credit" in r]
+    return list(dict.fromkeys(lines))
+
+
+def _escape(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;")
+
+
 def viewer_html(title: str, mesh: Mesh, materials: Sequence[GltfMaterial], panels: Sequence[Panel],
                 envs: Mapping[str, bytes], entropy: np.ndarray, camera_position: Sequence[float],
-                fov_deg: float, panel_size: int = 300) -> str:
+                fov_deg: float, panel_size: int = 300, credits: Sequence[str] = ()) -> str:
     """The viewer page.
 
     Parameters
@@ -115,6 +126,8 @@ def viewer_html(title: str, mesh: Mesh, materials: Sequence[GltfMaterial], panel
         Vertical field of view of the square panels, degrees.
     panel_size : int
         Smallest panel width, CSS pixels.
+    credits : sequence of str
+        Where the shown mesh and maps come from and under which terms (:func:`asset_credits`).
 
     Returns
     -------
@@ -142,12 +155,13 @@ def viewer_html(title: str, mesh: Mesh, materials: Sequence[GltfMaterial], panel
         "background": BACKGROUND,
     }
     fields = {
-        "TITLE": title.replace("&", "&amp;").replace("<", "&lt;"),
+        "TITLE": _escape(title),
         # In a <script> element "<" can only start "</script" or "<!--": escaped, JSON reads the same.
         "DATA": json.dumps(data).replace("<", "\\u003c"),
         "THREE": _inline((WEB_DIR / "vendor" / "three.bundle.min.js").read_text(encoding="utf-8")),
         "VIEWER": _inline((WEB_DIR / "viewer.js").read_text(encoding="utf-8")),
         "THREE_VERSION": THREE_VERSION,
+        "CREDITS": "".join(f"<br>{_escape(line)}" for line in credits),
     }
     template = (WEB_DIR / "viewer.html").read_text(encoding="utf-8")
     # One pass: a field's text is never searched for placeholders again.
