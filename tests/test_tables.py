@@ -19,7 +19,7 @@ from freqbrdf.report.tables.paper import ClaimCriteria, PaperResultsError, read_
 from freqbrdf.report.tables.render import HTML_STYLE, html_page, latex_escape, to_html, to_latex, to_markdown
 from freqbrdf.report.tables.summary import SUMMARY_KEYS, run_facts, run_summary_html, summaries
 from freqbrdf.report.tables.tables import (ablation_table, agreement_table, finetune_table, headline_table, merge_table,
-                                           parameter_table, relighting_table)
+                                           parameter_table, relighting_table, uncertainty_table)
 from freqbrdf.report.tables.tidy import check_tidy, equal_accuracy_ratio, speed_ratio, views_sweep
 
 PAPER_FILE = Path(__file__).resolve().parents[1] / "config" / "paper_results.yaml"
@@ -552,8 +552,22 @@ def test_extra_methods_follow_the_registrys_order():
 def test_summaries_cover_the_six_tables_and_the_claims():
     keys = [s.key for s in summaries(full_run(), PAPER, ENV_KINDS)]
     assert keys == ["table1_relighting", "table2_parameters", "table3_agreement", "table4_ablation",
-                    "table5_finetune", "table6_merge", "claims"]
+                    "table5_finetune", "table6_merge", "uncertainty", "claims"]
     assert tuple(keys) == SUMMARY_KEYS  # the file stems of rule tables
+
+
+def test_uncertainty_table_shows_each_maps_mean_ause_per_method_and_error():
+    values = {("freq", "ause_entropy_parameter"): 0.2, ("freq", "ause_views_parameter"): 0.1,
+              ("freq", "ause_light_parameter"): 0.3, ("freq", "ause_random_parameter"): 0.4,
+              ("freq", "ause_entropy_brdf"): 0.25, ("freq", "ause_views_brdf"): 0.15, ("freq", "ause_light_brdf"): 0.35,
+              ("freq", "ause_random_brdf"): 0.45, ("freq", "pearson_entropy_error"): 0.3,
+              ("freq", "partial_pearson_entropy_error_views"): 0.08}
+    rows = [(obj, "studio", m, metric, v * (1.5 if obj == "torus" else 1.0)) for obj in ("sphere", "torus")
+            for (m, metric), v in values.items()]
+    table = uncertainty_table(tidy(rows + mse_rows("mitsuba", 0.1)))  # mitsuba has no AUSE rows: no row
+    assert list(table.Method) == ["Ours (freq)", "Ours (freq)"] and list(table.Error) == ["parameter", "BRDF"]
+    assert list(table.iloc[0, 2:]) == ["0.250", "0.125", "0.375", "0.500", "0.38", "0.10"]
+    assert list(table.iloc[1, 2:]) == ["0.312", "0.188", "0.437", "0.562", "", ""]  # 0.4375 is just below in binary
 
 
 def test_agreement_table_means_over_captures_beside_the_paper():

@@ -17,8 +17,9 @@ from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
-from freqbrdf.report.metrics import (base_color_si_scores, brdf_log_rmse, is_converged, last_epoch_change,
+from freqbrdf.report.metrics import (base_color_si_scores, brdf_log_error, is_converged, last_epoch_change,
                                      parameter_error_map, parameter_mse, pearson, time_to_reach)
+from freqbrdf.report.sparsification import baseline_maps, partial_pearson, uncertainty_scores
 from freqbrdf.report.tables.tidy import TIDY_COLUMNS
 from freqbrdf.report.relight_metrics import RELIGHT_METRICS, HdrScoring, relight_view_scores, scored_pixels
 
@@ -34,7 +35,9 @@ def keyed(keys, paths, per=1):
 
 def parameter_rows(smk):
     """mse_*, brdf_log_rmse and base_color_si_{psnr,ssim} of every method on every synthetic capture;
-    pearson_entropy_error of the entropy-scored methods; mean_entropy (over observed texels) of each capture."""
+    for the entropy-scored methods, pearson_entropy_error, partial_pearson_entropy_error_views and
+    ause_<map>_<error> (the entropy and the trivial baselines against the parameter and BRDF errors);
+    mean_entropy (over observed texels) of each capture."""
     p = smk.params
     truth_files = keyed([(o,) for o in p.objects], smk.input.truth, per=len(TEXTURES))
     truth = cache(lambda o: read_svbrdf(dict(zip(TEXTURES, truth_files[(o,)]))))
@@ -47,17 +50,24 @@ def parameter_rows(smk):
         entropy = entropy_atlas((obj, env, poses))[scored((obj, env, poses))]
         rows.append(dict(object=obj, env=env, poses=poses, method="", relight_env="", metric="mean_entropy",
                          value=float(entropy.mean())))
+    baselines = cache(lambda key: baseline_maps(read_observations(captures[key])))
     for (obj, env, poses, method), directory in keyed(p.synthetic, smk.input.estimates).items():
         estimate, texels = read_svbrdf(directory), scored((obj, env, poses))
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")
         rows += [key | dict(metric=f"mse_{k}", value=v) for k, v in parameter_mse(truth(obj), estimate, texels).items()]
-        rows.append(key | dict(metric="brdf_log_rmse", value=brdf_log_rmse(truth(obj), estimate, texels)))
+        brdf_error = brdf_log_error(truth(obj), estimate, texels)
+        rows.append(key | dict(metric="brdf_log_rmse", value=float(np.sqrt(brdf_error.mean()))))
         scaled = base_color_si_scores(truth(obj).base_color, estimate.base_color, texels)
         rows += [key | dict(metric=f"base_color_si_{k}", value=v) for k, v in scaled.items()]
         if method in p.entropy_methods:
-            entropy = entropy_atlas((obj, env, poses))
-            error = parameter_error_map(truth(obj), estimate).ravel()
-            rows.append(key | dict(metric="pearson_entropy_error", value=pearson(entropy[texels], error[texels])))
+            entropy = entropy_atlas((obj, env, poses))[texels]
+            error = parameter_error_map(truth(obj), estimate).ravel()[texels]
+            views = baselines((obj, env, poses))["views"]
+            rows.append(key | dict(metric="pearson_entropy_error", value=pearson(entropy, error)))
+            rows.append(key | dict(metric="partial_pearson_entropy_error_views", value=partial_pearson(entropy, error, views)))
+            maps = {"entropy": entropy, **baselines((obj, env, poses))}
+            scores = uncertainty_scores(maps, {"parameter": error, "brdf": brdf_error})
+            rows += [key | dict(metric=name, value=value) for name, value in scores.items()]
     return rows
 
 

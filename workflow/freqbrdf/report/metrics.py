@@ -226,6 +226,18 @@ def brdf_log_rmse(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray],
     float
         Dimensionless (a log of reflected fraction); 0 for identical textures.
     """
+    return float(np.sqrt(brdf_log_error(truth, estimate, texels, grid).mean()))
+
+
+def brdf_log_error(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray], texels: np.ndarray,
+                   grid: tuple[int, int, int] = BRDF_GRID) -> np.ndarray:
+    """Per texel, the mean square of :func:`brdf_log_rmse`'s log difference (over pairs and channels).
+
+    Returns
+    -------
+    ndarray, shape (N,), float64
+        One value per entry of ``texels``.
+    """
     texels = np.asarray(texels)
     if len(texels) == 0:
         raise ValueError("brdf_log_rmse: no texels to score")
@@ -235,16 +247,16 @@ def brdf_log_rmse(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray],
     n = truth["roughness"].shape[0] * truth["roughness"].shape[1]
     if texels.min() < 0 or texels.max() >= n:
         raise ValueError(f"brdf_log_rmse: texel {texels[(texels < 0) | (texels >= n)][0]} outside the {n} texels")
-    # float32: the texture-by-pairs arrays dominate the time; sums stay float64
+    # float32: the texture-by-pairs arrays dominate the time; means stay float64
     cosines = tuple(c.astype(np.float32) for c in brdf_directions(grid))
     weight = cosines[0][None, :, None]
     params = _texel_parameters(truth, texels), _texel_parameters(estimate, texels)
-    total = 0.0
+    out = np.empty(len(texels))
     for start in range(0, len(texels), _BRDF_CHUNK):
         part = slice(start, start + _BRDF_CHUNK)
         logs = [np.log1p(principled_brdf(*(p[part] for p in side), *cosines) * weight) for side in params]
-        total += float(np.square(logs[1] - logs[0]).mean(axis=(1, 2), dtype=np.float64).sum())
-    return float(np.sqrt(total / len(texels)))
+        out[part] = np.square(logs[1] - logs[0]).mean(axis=(1, 2), dtype=np.float64)
+    return out
 
 
 def base_color_si_scores(truth: np.ndarray, estimate: np.ndarray, texels: np.ndarray) -> dict[str, float]:

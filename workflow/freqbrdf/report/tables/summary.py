@@ -15,7 +15,7 @@ from freqbrdf.report.tables.paper import PaperResults
 from freqbrdf.report.tables.render import HTML_STYLE, scoped_style, to_html
 from freqbrdf.report.tables.tidy import mitsuba_convergence
 from freqbrdf.report.tables.tables import (ablation_table, agreement_table, finetune_table, merge_table,
-                                           parameter_table, relighting_table)
+                                           parameter_table, relighting_table, uncertainty_table)
 
 
 def run_facts(run: Mapping[str, object]) -> dict[str, str]:
@@ -108,7 +108,7 @@ class Summary:
 
 
 SUMMARY_KEYS = ("table1_relighting", "table2_parameters", "table3_agreement", "table4_ablation", "table5_finetune",
-                "table6_merge", "claims")
+                "table6_merge", "uncertainty", "claims")
 """Keys of `summaries`, in its order: the stems of rule tables' output files."""
 
 
@@ -180,6 +180,15 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "capture whose spectrum entropy is lowest there, against the mean of the separate captures' "
                 "estimates; parameter MSE as in Table 2. The paper merged Mitsuba's results. " + scope,
                 merge_table(df, paper, boot=context.boot)),
+        Summary("uncertainty", "Uncertainty: does the entropy rank the errors better than the view count?",
+                "Sparsification (Ilg et al. 2018): texels removed most uncertain first, the mean error of the rest "
+                "divided by the mean error of all; AUSE is the area between that curve and the one ordered by the "
+                "true error (0: the ideal order; Random: the expected area of a random order). Maps: our spectrum "
+                "entropy; -views: fewer views that see the texel first (1/sqrt(views) has the same order); -light: "
+                "less light along the views' mirror directions first. Errors: the per-texel parameter error "
+                "(Table 2's MSE) and BRDF error (its log-RMSE). Pearson r: entropy against the parameter error; "
+                "partial r | views: the same after removing each one's linear fit in the view count. " + scope,
+                uncertainty_table(df, context.boot)),
         Summary("claims", "Claims of the paper, checked on this run",
                 f"Each number: mean [{100 * context.boot.level:g}% interval], a bootstrap over captures and, within "
                 "each, over relighting environments and test views; differences paired capture by capture. "

@@ -356,3 +356,40 @@ def headline_table(df: pd.DataFrame, boot: Bootstrap | None = None) -> pd.DataFr
              "PSNR-H": _mean(df, m, "psnr_h", 2, boot), "Time": fmt_time(method_time(df, m))}
             for m in ordered_methods(df.method[df.method != ""])]
     return pd.DataFrame(rows, columns=["Method", "Parameter MSE", "PSNR-H", "Time"])
+
+
+UNCERTAINTY_MAPS = (("entropy", "Entropy"), ("views", "-views"), ("light", "-light"), ("random", "Random"))
+"""The uncertainty maps of :func:`uncertainty_table`'s AUSE columns: metric part, column label."""
+
+
+def uncertainty_table(df: pd.DataFrame, boot: Bootstrap | None = None, digits: int = 3) -> pd.DataFrame:
+    """How well the entropy ranks each entropy-scored method's per-texel errors, against trivial baselines.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Tidy metrics with ``ause_<map>_<error>``, ``pearson_entropy_error`` and
+        ``partial_pearson_entropy_error_views`` rows (:mod:`freqbrdf.report.sparsification`).
+    boot : Bootstrap, optional
+        Show each mean with its interval over captures.
+
+    Returns
+    -------
+    DataFrame of str
+        ``Method, Error, AUSE: Entropy, -views, -light, Random, Pearson r, partial r | views``: one row
+        per method and error (parameter, BRDF); lower AUSE ranks better; the correlations (parameter
+        error only) with the entropy, then with the view count's linear part removed.
+    """
+    rows = []
+    for method in ordered_methods(df.method[df.metric == "ause_entropy_parameter"]):
+        for error, label in (("parameter", "parameter"), ("brdf", "BRDF")):
+            row = {"Method": f"{method_label(method)} ({method})", "Error": label}
+            row |= {f"AUSE: {title}": _mean(df, method, f"ause_{name}_{error}", digits, boot)
+                    for name, title in UNCERTAINTY_MAPS}
+            correlations = error == "parameter"
+            row["Pearson r"] = _mean(df, method, "pearson_entropy_error", 2, boot) if correlations else ""
+            row["partial r | views"] = (_mean(df, method, "partial_pearson_entropy_error_views", 2, boot)
+                                        if correlations else "")
+            rows.append(row)
+    columns = ["Method", "Error", *(f"AUSE: {t}" for _, t in UNCERTAINTY_MAPS), "Pearson r", "partial r | views"]
+    return pd.DataFrame(rows, columns=columns)

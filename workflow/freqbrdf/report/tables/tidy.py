@@ -15,7 +15,12 @@ with an empty ``view``). Metric names:
 - ``psnr_h``, ``psnr_l``, ``ssim``, ``mse`` with ``relight_env`` set: relighting
   under a held-out environment, per test view and their mean;
 - ``pearson_entropy_error``: per capture, correlation of our entropy with that
-  method's per-texel squared parameter error;
+  method's per-texel squared parameter error; ``partial_pearson_entropy_error_views``:
+  the same with the view count's linear part removed from both;
+- ``ause_<map>_<error>``: per capture, the area between the sparsification curve
+  of an uncertainty map (``entropy``, ``views``, ``inv_sqrt_views``, ``light``,
+  ``random``) and the oracle's, for the ``parameter`` or ``brdf`` error
+  (:mod:`freqbrdf.report.sparsification`);
 - ``time_s``, ``max_rss_mb``, ``time_total_s``, ``speed_ratio_vs_mitsuba``;
 - ``mitsuba_time_to_match_s``, ``mitsuba_reached``, ``speed_ratio_equal_accuracy``:
   for the methods that need the observations, Mitsuba's time to reach their MSE

@@ -1,0 +1,82 @@
+"""Sparsification curves, AUSE and the partial correlation: analytic values and brute-force oracles."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from freqbrdf.report.metrics import pearson
+from freqbrdf.report.sparsification import ause, partial_pearson, random_ause, sparsification_curve
+
+
+def test_a_curve_by_hand_including_a_texel_cut_in_half():
+    error = np.array([4.0, 3.0, 2.0, 1.0])  # mean 2.5
+    curve = sparsification_curve(error, error, np.array([0.0, 0.125, 0.25, 0.5]))
+    # k = 0; k = 0.5: half of the 4 gone, (10 - 2) / 3.5; k = 1: (3 + 2 + 1) / 3; k = 2: (2 + 1) / 2
+    np.testing.assert_allclose(curve, np.array([2.5, 8 / 3.5, 2.0, 1.5]) / 2.5, rtol=1e-15)
+
+
+def test_the_oracle_has_no_area_and_a_backward_order_has_more_than_a_random_one():
+    rng = np.random.default_rng(0)
+    error = rng.exponential(size=500)
+    assert ause(error, error) == 0.0
+    noisy = error + rng.normal(scale=0.5, size=500)
+    assert 0 < ause(noisy, error) < random_ause(error) < ause(-error, error)
+
+
+def test_tied_uncertainties_are_removed_as_the_mean_over_their_orders():
+    """Oracle: every order of the tied texels, the mean of the rest at whole numbers of texels."""
+    uncertainty = np.array([2.0, 1.0, 1.0, 1.0, 0.0, 0.0])
+    error = np.array([5.0, 0.0, 3.0, 6.0, 1.0, 2.0])
+    fractions = np.arange(6) / 6
+    orders = [np.array([0, *a, *b]) for a in itertools.permutations([1, 2, 3]) for b in itertools.permutations([4, 5])]
+    expected = np.mean([[error[order[k:]].mean() for k in range(6)] for order in orders], axis=0) / error.mean()
+    np.testing.assert_allclose(sparsification_curve(uncertainty, error, fractions), expected, rtol=1e-14)
+    np.testing.assert_allclose(sparsification_curve(np.zeros(6), error, fractions), 1.0, rtol=1e-14)
+
+
+def test_only_the_order_counts_so_minus_views_and_one_over_sqrt_views_agree():
+    rng = np.random.default_rng(1)
+    views = rng.integers(1, 12, size=300)
+    error = rng.exponential(size=300) / views
+    assert ause(-views, error) == pytest.approx(ause(1 / np.sqrt(views), error), abs=1e-15)
+    assert ause(-views, error) < random_ause(error)
+
+
+def test_partial_correlation_matches_the_formula_and_removes_a_shared_cause():
+    rng = np.random.default_rng(2)
+    views = rng.normal(size=4000)
+    a, b = views + rng.normal(size=4000), views + rng.normal(size=4000)  # related only through views
+    r_ab, r_ac, r_bc = pearson(a, b), pearson(a, views), pearson(b, views)
+    formula = (r_ab - r_ac * r_bc) / np.sqrt((1 - r_ac**2) * (1 - r_bc**2))
+    assert partial_pearson(a, b, views) == pytest.approx(formula, abs=1e-12)
+    assert r_ab > 0.4 and abs(partial_pearson(a, b, views)) < 0.05
+    shared = rng.normal(size=4000)
+    assert partial_pearson(views + shared, shared + 0.5 * rng.normal(size=4000), views) > 0.8
+
+
+@pytest.mark.parametrize("uncertainty, error, message", [
+    (np.ones(3), np.ones(4), "equally long"),
+    (np.array([np.nan, 1.0]), np.ones(2), "finite"),
+    (np.ones(2), np.array([-1.0, 2.0]), "error must be >= 0"),
+    (np.ones(2), np.zeros(2), "positive mean"),
+])
+def test_bad_inputs_are_named(uncertainty, error, message):
+    with pytest.raises(ValueError, match=message):
+        sparsification_curve(uncertainty, error)
+
+
+def test_baseline_maps_count_the_views_and_average_the_light_they_see():
+    from freqbrdf.artefacts import Observations
+    from freqbrdf.report.sparsification import baseline_maps
+
+    weight = np.array([[0.5, 0.0, 1.0], [0.0, 0.0, 0.0], [0.2, 0.3, 0.4]])  # texel 1 unobserved
+    incoming = np.zeros((3, 3, 3))
+    incoming[0, :, :] = [[1.0] * 3, [99.0] * 3, [3.0] * 3]  # the unseen view's light does not count
+    incoming[2, :, :] = 2.0
+    obs = Observations.from_arrays(np.zeros((3, 3, 3)), weight, np.zeros((3, 3, 3)), np.tile(np.eye(3), (3, 1, 1)),
+                                   np.arange(3), 2, incoming=incoming)
+    maps = baseline_maps(obs)
+    np.testing.assert_allclose(maps["views"], [-2.0, -3.0])
+    np.testing.assert_allclose(maps["inv_sqrt_views"], [1 / np.sqrt(2), 1 / np.sqrt(3)])
+    np.testing.assert_allclose(maps["light"], [-2.0, -2.0])  # luminance weights sum to 1
