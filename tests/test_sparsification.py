@@ -80,3 +80,18 @@ def test_baseline_maps_count_the_views_and_average_the_light_they_see():
     np.testing.assert_allclose(maps["views"], [-2.0, -3.0])
     np.testing.assert_allclose(maps["inv_sqrt_views"], [1 / np.sqrt(2), 1 / np.sqrt(3)])
     np.testing.assert_allclose(maps["light"], [-2.0, -2.0])  # luminance weights sum to 1
+
+
+def test_the_curves_behind_the_scores_include_random_and_an_oracle_below_every_order():
+    from freqbrdf.report.sparsification import FRACTIONS, sparsification_curves
+
+    rng = np.random.default_rng(3)
+    error = rng.exponential(size=200)
+    maps = {"entropy": error + rng.normal(size=200), "views": -rng.integers(1, 9, size=200).astype(float)}
+    records = sparsification_curves(maps, {"parameter": error})
+    assert len(records) == 4 * len(FRACTIONS)
+    curve = {name: np.array([r["value"] for r in records if r["map"] == name]) for name in (*maps, "random", "oracle")}
+    assert np.all(curve["random"] == 1.0)
+    for name in ("entropy", "views", "random"):
+        assert np.all(curve["oracle"] <= curve[name] + 1e-12)
+    assert np.trapezoid(curve["entropy"] - curve["oracle"], FRACTIONS) == pytest.approx(ause(maps["entropy"], error))

@@ -23,12 +23,13 @@ rule metrics:
         ],
         code=library("metrics"),
     output:
-        report(
+        metrics=report(
             layout.METRICS,
             category="Tables",
             caption="../report/metrics.rst",
             labels={"table": "metrics.csv (every number)"},
         ),
+        sparsification=layout.SPARSIFICATION,
     log:
         layout.log("metrics"),
     benchmark:

@@ -16,6 +16,7 @@ REPORT_TARGETS = (
     [fill(layout.TABLE, name=f"{t}.{ext}") for t in TABLES for ext in ("md", "tex")]
     + [fill(layout.TABLE, name=name) for name in ("tables.md", "tables.html", "claims.html")]
     + [fill(layout.CAPTURE_FIGURE, object=o, env=e, poses=POSES, name="maps.png") for o, e in CAPTURES]
+    + ([fill(layout.FIGURE, name="uncertainty.png")] if "freq" in METHODS and SYNTHETIC_CAPTURES else [])
     + [fill(layout.CAPTURE_FIGURE, object=o, env=e, poses=POSES, name="relight.png") for o, e in SYNTHETIC_CAPTURES]
     + [fill(layout.CAPTURE_FIGURE, object=o, env=e, poses=POSES, name="regulariser.png") for o, e in CAPTURES]
     + [fill(layout.VIEWS, object=o, env=e, poses=POSES, ext="png") for o, e in VIEWS_CAPTURES]
@@ -152,6 +153,34 @@ rule relight_figure:
         metrics={key: config["evaluate"][key] for key in METRIC_KEYS},
     script:
         "../scripts/relight_figure.py"
+
+
+rule uncertainty_figure:
+    """Sparsification curves of freq's per-texel error under the entropy and the trivial
+    uncertainty baselines, one panel per capture (issue 33)."""
+    input:
+        curves=layout.SPARSIFICATION,
+        code=library("uncertainty_figure"),
+    output:
+        report(
+            fill(layout.FIGURE, name="uncertainty.png"),
+            category="Tables",
+            caption="../report/uncertainty.rst",
+            labels={"table": "sparsification curves (freq)"},
+        ),
+    log:
+        layout.log("uncertainty_figure"),
+    conda:
+        "../envs/freqbrdf.yaml"
+    resources:
+        mem_mb=memory(500),
+        runtime=minutes(1),
+    params:
+        poses=POSES,
+        method="freq",
+        captures=SYNTHETIC_CAPTURES,  # the benchmark's (the stress captures have their own page)
+    script:
+        "../scripts/uncertainty_figure.py"
 
 
 rule convergence_figure:

@@ -19,7 +19,7 @@ from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
 from freqbrdf.report.metrics import (base_color_si_scores, brdf_log_error, is_converged, last_epoch_change,
                                      parameter_error_map, parameter_mse, pearson, time_to_reach)
-from freqbrdf.report.sparsification import baseline_maps, partial_pearson, uncertainty_scores
+from freqbrdf.report.sparsification import baseline_maps, partial_pearson, sparsification_curves, uncertainty_scores
 from freqbrdf.report.tables.tidy import TIDY_COLUMNS
 from freqbrdf.report.relight_metrics import RELIGHT_METRICS, HdrScoring, relight_view_scores, scored_pixels
 
@@ -37,7 +37,7 @@ def parameter_rows(smk):
     """mse_*, brdf_log_rmse and base_color_si_{psnr,ssim} of every method on every synthetic capture;
     for the entropy-scored methods, pearson_entropy_error, partial_pearson_entropy_error_views and
     ause_<map>_<error> (the entropy and the trivial baselines against the parameter and BRDF errors);
-    mean_entropy (over observed texels) of each capture."""
+    mean_entropy (over observed texels) of each capture. Also the sparsification curves behind the AUSE."""
     p = smk.params
     truth_files = keyed([(o,) for o in p.objects], smk.input.truth, per=len(TEXTURES))
     truth = cache(lambda o: read_svbrdf(dict(zip(TEXTURES, truth_files[(o,)]))))
@@ -51,6 +51,7 @@ def parameter_rows(smk):
         rows.append(dict(object=obj, env=env, poses=poses, method="", relight_env="", metric="mean_entropy",
                          value=float(entropy.mean())))
     baselines = cache(lambda key: baseline_maps(read_observations(captures[key])))
+    curves = []
     for (obj, env, poses, method), directory in keyed(p.synthetic, smk.input.estimates).items():
         estimate, texels = read_svbrdf(directory), scored((obj, env, poses))
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")
@@ -66,9 +67,11 @@ def parameter_rows(smk):
             rows.append(key | dict(metric="pearson_entropy_error", value=pearson(entropy, error)))
             rows.append(key | dict(metric="partial_pearson_entropy_error_views", value=partial_pearson(entropy, error, views)))
             maps = {"entropy": entropy, **baselines((obj, env, poses))}
-            scores = uncertainty_scores(maps, {"parameter": error, "brdf": brdf_error})
-            rows += [key | dict(metric=name, value=value) for name, value in scores.items()]
-    return rows
+            errors = {"parameter": error, "brdf": brdf_error}
+            rows += [key | dict(metric=name, value=value) for name, value in uncertainty_scores(maps, errors).items()]
+            curves += [dict(object=obj, env=env, poses=poses, method=method) | record
+                       for record in sparsification_curves(maps, errors)]
+    return rows, curves
 
 
 def reference_views(test, min_coverage):
@@ -194,11 +197,15 @@ def agreement_rows(smk):
 
 
 def main(smk, log):
-    rows = parameter_rows(smk) + relight_rows(smk, log) + timing_rows(smk)
+    rows, curves = parameter_rows(smk)
+    rows += relight_rows(smk, log) + timing_rows(smk)
     rows += equal_accuracy_rows(smk, rows, log) + views_rows(smk) + agreement_rows(smk)
     table = pd.DataFrame(rows, columns=COLUMNS)
-    with atomic_path(smk.output[0]) as tmp:
+    with atomic_path(smk.output.metrics) as tmp:
         table.to_csv(tmp, index=False, float_format="%.6g")
+    with atomic_path(smk.output.sparsification) as tmp:
+        pd.DataFrame(curves, columns=["object", "env", "poses", "method", "error", "map", "fraction", "value"]).to_csv(
+            tmp, sep="\t", index=False, float_format="%.6g")
     summary = table[table.metric.isin(["mse_average", "psnr_h", "time_total_s"]) & table.view.fillna("").eq("")]
     log.info("means over captures (and relight environments):\n%s",
              summary.pivot_table(index="method", columns="metric", values="value").to_string(float_format=lambda v: f"{v:.3f}"))

@@ -316,11 +316,9 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
         each gets a :data:`SOURCE_RECORD` naming the user's files (:func:`capture_source`).
     mesh, envmap : Path
         Where to write the mesh (pipeline PLY layout, Y-up) and the environment map.
-    atlas : AtlasSettings, optional
-        Given, a mesh without usable UVs is unwrapped by xatlas (:func:`freqbrdf.capture.mesh_io.clean_mesh`)
-        instead of refused.
-    log : logging.Logger, optional
-        Where an environment map's clean-up and a mesh's unwrapping are reported.
+    atlas, log : AtlasSettings, logging.Logger, optional
+        Unwrap a mesh without usable UVs (:func:`freqbrdf.capture.mesh_io.clean_mesh`) instead of
+        refusing it; where that and an environment map's clean-up are reported.
     up_axis : {"y", "z"}
         World up axis of the capture.
     camera : {"opengl", "opencv"}

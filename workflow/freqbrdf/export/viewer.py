@@ -90,8 +90,8 @@ def _inline(script: str) -> str:
 
 
 def asset_credits(records: Sequence[Mapping]) -> list[str]:
-    """One line per distinct third-party asset among source records (``results/envs/{env}.json``,
-    ``results/objects/{object}/source.json``): its credit and licence, in first-seen order."""
+    """One line per distinct third-party asset among source records (rule build_env's and
+    build_object's ``source`` outputs): its credit and licence, in first-seen order."""
     lines = [f"{r['credit']} ({r['licence']})" for r in records if "credit" in r]
     return list(dict.fromkeys(lines))
 

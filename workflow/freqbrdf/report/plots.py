@@ -6,6 +6,7 @@ import os
 from collections.abc import Mapping
 
 import numpy as np
+import pandas as pd
 
 from freqbrdf.util.io import atomic_path
 from freqbrdf.util.colour import to_srgb, tonemap
@@ -209,4 +210,38 @@ def loss_figure(path: str | os.PathLike, curve: np.ndarray, title: str, ylabel: 
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.grid(alpha=0.3)
+    save_figure(fig, path)
+
+
+SPARSIFICATION_STYLE = {"entropy": ("C3", "-"), "views": ("C0", "-"), "light": ("C2", "-"),
+                        "random": ("0.5", ":"), "oracle": ("k", "--")}
+"""Colour and line of each uncertainty map's sparsification curve (the others are not drawn)."""
+
+
+def sparsification_figure(path: str | os.PathLike, curves: pd.DataFrame, method: str, error: str = "parameter") -> None:
+    """Sparsification curves of one method, one panel per capture.
+
+    Parameters
+    ----------
+    curves : DataFrame
+        ``object, env, poses, method, error, map, fraction, value`` (rule metrics' sparsification.tsv).
+    method, error : str
+        Which method's curves, for which per-texel error.
+    """
+    rows = curves[(curves.method == method) & (curves.error == error)]
+    captures = list(dict.fromkeys(zip(rows.object, rows.env, rows.poses)))
+    if not captures:
+        raise ValueError(f"no sparsification curves of method {method!r} for the {error} error")
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(captures), figsize=(3.2 * len(captures), 3.0), squeeze=False, sharey=True)
+    for ax, (obj, env, poses) in zip(axes[0], captures):
+        own = rows[(rows.object == obj) & (rows.env == env) & (rows.poses == poses)]
+        for name, (colour, line) in SPARSIFICATION_STYLE.items():
+            curve = own[own["map"] == name]
+            ax.plot(curve.fraction, curve.value, color=colour, linestyle=line, label=name)
+        ax.set_title(f"{obj} / {env}")
+        ax.set_xlabel("fraction of texels removed")
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel(f"mean {error} error of the rest (relative)")
+    axes[0, -1].legend(fontsize=8)
     save_figure(fig, path)

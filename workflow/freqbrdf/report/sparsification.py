@@ -127,6 +127,26 @@ def uncertainty_scores(maps: Mapping[str, np.ndarray], errors: Mapping[str, np.n
     return scores
 
 
+def sparsification_curves(maps: Mapping[str, np.ndarray], errors: Mapping[str, np.ndarray],
+                          fractions: np.ndarray = FRACTIONS) -> list[dict]:
+    """The curves behind :func:`uncertainty_scores`, one record per error, map and fraction.
+
+    Returns
+    -------
+    list of dict
+        ``{"error", "map", "fraction", "value"}``; maps as given, then ``random`` (flat at 1)
+        and ``oracle`` (ordered by the error itself).
+    """
+    records = []
+    for error_name, error in errors.items():
+        curves = {name: sparsification_curve(values, error, fractions) for name, values in maps.items()}
+        curves["random"] = np.ones(len(fractions))
+        curves["oracle"] = sparsification_curve(error, error, fractions)
+        records += [{"error": error_name, "map": name, "fraction": float(f), "value": float(v)}
+                    for name, curve in curves.items() for f, v in zip(fractions, curve)]
+    return records
+
+
 def _checked(uncertainty: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     u = np.asarray(uncertainty, dtype=np.float64).ravel()
     e = np.asarray(error, dtype=np.float64).ravel()

@@ -112,6 +112,16 @@ SUMMARY_KEYS = ("table1_relighting", "table2_parameters", "table3_agreement", "t
 """Keys of `summaries`, in its order: the stems of rule tables' output files."""
 
 
+_UNCERTAINTY_CAPTION = (
+    "Sparsification (Ilg et al. 2018): texels removed most uncertain first, the mean error of the rest "
+    "divided by the mean error of all; AUSE is the area between that curve and the one ordered by the "
+    "true error (0: the ideal order; Random: the expected area of a random order). Maps: our spectrum "
+    "entropy; -views: fewer views that see the texel first (1/sqrt(views) has the same order); -light: "
+    "less light along the views' mirror directions first. Errors: the per-texel parameter error "
+    "(Table 2's MSE) and BRDF error (its log-RMSE). Pearson r: entropy against the parameter error; "
+    "partial r | views: the same after removing each one's linear fit in the view count. ")
+
+
 def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str] | None = None,
               context: ClaimContext | None = None) -> list[Summary]:
     """Every summary table of the report, in the paper's order, then the claims.
@@ -181,14 +191,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "estimates; parameter MSE as in Table 2. The paper merged Mitsuba's results. " + scope,
                 merge_table(df, paper, boot=context.boot)),
         Summary("uncertainty", "Uncertainty: does the entropy rank the errors better than the view count?",
-                "Sparsification (Ilg et al. 2018): texels removed most uncertain first, the mean error of the rest "
-                "divided by the mean error of all; AUSE is the area between that curve and the one ordered by the "
-                "true error (0: the ideal order; Random: the expected area of a random order). Maps: our spectrum "
-                "entropy; -views: fewer views that see the texel first (1/sqrt(views) has the same order); -light: "
-                "less light along the views' mirror directions first. Errors: the per-texel parameter error "
-                "(Table 2's MSE) and BRDF error (its log-RMSE). Pearson r: entropy against the parameter error; "
-                "partial r | views: the same after removing each one's linear fit in the view count. " + scope,
-                uncertainty_table(df, context.boot)),
+                _UNCERTAINTY_CAPTION + scope, uncertainty_table(df, context.boot)),
         Summary("claims", "Claims of the paper, checked on this run",
                 f"Each number: mean [{100 * context.boot.level:g}% interval], a bootstrap over captures and, within "
                 "each, over relighting environments and test views; differences paired capture by capture. "
