@@ -66,6 +66,27 @@ def test_every_output_is_written(run):
         assert bench[0].startswith("s\th:m:s\tmax_rss") and float(bench[1].split("\t")[0]) > 0
 
 
+def test_captured_light_and_a_scan_are_built_with_their_sources(repo, tmp_path):
+    """An environment of kind hdri and a scanned object, through rules fetch_asset_package, build_env
+    and build_object: cleaned, averaged down and turned; atlased; each with its source and licence."""
+    import json
+
+    import yaml
+
+    extra = tmp_path / "real.yaml"
+    extra.write_text(yaml.safe_dump({"objects": ["sphere", "bunny"],
+                                     "envs": {"outdoor": {"kind": "hdri", "map": "sky", "rotation_deg": 90.0}}}))
+    snakemake(repo, tmp_path, "results/envs/outdoor.exr", "results/objects/bunny/mesh.ply", extra_config=[extra])
+    env = read_exr(tmp_path / "results/envs/outdoor.exr")
+    assert env.shape == (32, 64, 3) and env.min() >= 0
+    source = json.loads((tmp_path / "results/envs/outdoor.json").read_text())
+    assert source["licence"] == "CC0-1.0" and source["map"] == "sky" and source["cleaning"]["negative_texels"] == 11
+    mesh = read_ply(tmp_path / "results/objects/bunny/mesh.ply")
+    assert np.sqrt((mesh.vertices ** 2).sum(axis=1)).max() == pytest.approx(1.0) and mesh.uvs.max() <= 1
+    assert "not CC0" in json.loads((tmp_path / "results/objects/bunny/source.json").read_text())["licence"]
+    assert "negative and 0 non-finite texels cleaned" in (tmp_path / "results/logs/build_env/outdoor.log").read_text()
+
+
 def test_capture_images_masks_and_cameras_agree(run):
     capture = run / "results/captures/sphere/studio/train"
     cameras = cameras_from_json(read_json(capture / "cameras.json"))
@@ -239,6 +260,23 @@ def test_metrics_csv_has_every_row(repo, run):
     pearson = table[table.metric == "pearson_entropy_error"]
     assert sorted(pearson.method) == sorted(m for m in ("freq", "mitsuba") if m in methods)
     assert pearson.value.between(-1.0, 1.0).all()
+    # ... its partial correlation given the view count, and the AUSE of each uncertainty map
+    # (the entropy and the trivial baselines) for both errors, with the curves behind them
+    scored = sorted(pearson.method)
+    partial = table[table.metric == "partial_pearson_entropy_error_views"]
+    assert sorted(partial.method) == scored and partial.value.between(-1.0, 1.0).all()
+    for name in ("entropy", "views", "inv_sqrt_views", "light", "random"):
+        for error in ("parameter", "brdf"):
+            rows = table[table.metric == f"ause_{name}_{error}"]
+            assert sorted(rows.method) == scored and (rows.value > -1e-9).all(), (name, error)
+    same = table.pivot_table(index="method", columns="metric", values="value")
+    np.testing.assert_allclose(same.ause_views_parameter, same.ause_inv_sqrt_views_parameter, atol=1e-12)
+    curves = pd.read_csv(run / "results/tables/sparsification.tsv", sep="\t", keep_default_na=False)
+    oracle = curves[(curves["map"] == "oracle") & (curves.error == "parameter") & (curves.method == "freq")]
+    entropy = curves[(curves["map"] == "entropy") & (curves.error == "parameter") & (curves.method == "freq")]
+    area = np.trapezoid(entropy.value.to_numpy() - oracle.value.to_numpy(), oracle.fraction.to_numpy())
+    assert area == pytest.approx(same.loc["freq", "ause_entropy_parameter"], abs=1e-4)  # 6 digits in the files
+    assert (run / "results/figures/uncertainty.png").stat().st_size > 10000
     # time and memory of every method on every capture, real ones included
     timing = table[table.metric.isin(["time_s", "max_rss_mb", "time_total_s"])]
     assert len(timing) == 3 * len(methods) * 2 and set(timing.object) == {"sphere", "sphere_copy"}
