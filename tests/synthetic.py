@@ -49,3 +49,17 @@ def rewrite_z_up(root, mesh, camera_axes: np.ndarray | None = None) -> None:
         for frame in transforms["frames"]:
             frame["transform_matrix"] = (world @ np.array(frame["transform_matrix"]) @ axes).tolist()
         write_json(root / f"transforms_{split}.json", transforms)
+
+
+def fake_package(path, members: dict) -> None:
+    """A tarball laid out like the package: each member a JS module of one base64 data URI."""
+    import base64
+    import io
+    import tarfile
+
+    with tarfile.open(path, "w:gz") as tar:
+        for name, data in members.items():
+            text = f"export default 'data:application/octet-stream;base64,{base64.b64encode(data).decode()}'\n".encode()
+            info = tarfile.TarInfo(name)
+            info.size = len(text)
+            tar.addfile(info, io.BytesIO(text))

@@ -9,6 +9,7 @@ from PIL import Image
 from freqbrdf.scene import assets, hdri
 from freqbrdf.sphere.sampling import equirect_solid_angles
 from freqbrdf.sphere.sh import project_equirect
+from synthetic import fake_package
 
 
 @pytest.fixture(scope="module")
@@ -142,3 +143,17 @@ def test_the_config_allows_exactly_the_twelve_maps_and_names_a_wrong_one(repo):
     config["envs"]["outdoor"]["map"] = "moon"
     with pytest.raises(ConfigError, match=r"config key envs\.outdoor\.map: 'moon' is not one of \['studio'"):
         check_config(config, schema_file)
+
+
+def test_the_decoder_returns_a_known_map_exactly(tmp_path):
+    import OpenEXR
+
+    rng = np.random.default_rng(4)
+    known = (rng.random((8, 16, 3)) * 100 - 5).astype(np.float16)  # half floats, as the package stores them
+    OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, {"RGB": known}).write(
+        str(tmp_path / "map.exr"))
+    fake_package(tmp_path / "fake.tgz", {"package/hdri/sky.exr.js": (tmp_path / "map.exr").read_bytes()})
+    decoded = hdri.read_map(tmp_path / "fake.tgz", "sky")
+    assert decoded.dtype == np.float32 and np.array_equal(decoded, known.astype(np.float32))
+    with pytest.raises(ValueError, match=r"fake\.tgz: no member package/hdri/city\.exr\.js"):
+        hdri.read_map(tmp_path / "fake.tgz", "city")

@@ -84,3 +84,32 @@ def test_the_atlas_texel_density_lies_within_the_procedural_objects(meshes):
     for name, mesh in meshes.items():
         density = uv_area(mesh.uvs, mesh.faces) / surface_area(mesh.vertices, mesh.faces)
         assert min(procedural) < density < max(procedural), (name, density, procedural)
+
+
+def test_the_glb_reader_returns_a_known_draco_mesh(tmp_path):
+    """Oracle: a tetrahedron Draco-encoded into a glTF binary inside a package-like tarball."""
+    import json
+    import struct
+
+    import DracoPy
+
+    from synthetic import fake_package
+
+    points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    draco = DracoPy.encode(points, faces, quantization_bits=16, preserve_order=True)
+    gltf = {"asset": {"version": "2.0"}, "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": len(draco)}],
+            "meshes": [{"primitives": [{"attributes": {}, "extensions": {
+                "KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}}]}]}
+    text = json.dumps(gltf).encode()
+    text += b" " * (-len(text) % 4)
+    binary = draco + b"\0" * (-len(draco) % 4)
+    glb = (struct.pack("<III", 0x46546C67, 2, 12 + 8 + len(text) + 8 + len(binary))
+           + struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(binary), 0x004E4942) + binary)
+    fake_package(tmp_path / "fake.tgz", {scans.SCANS["suzi"].member: glb})
+    positions, read_faces = scans.read_scan(tmp_path / "fake.tgz", "suzi")
+    np.testing.assert_allclose(positions, points, atol=1e-4)  # 16-bit quantisation
+    assert {tuple(sorted(f)) for f in read_faces} == {tuple(sorted(f)) for f in faces}
+    fake_package(tmp_path / "bad.tgz", {scans.SCANS["suzi"].member: b"not a glb at all"})
+    with pytest.raises(ValueError, match=r"bad\.tgz:package/models/suzi\.glb\.js: not a glTF binary"):
+        scans.read_scan(tmp_path / "bad.tgz", "suzi")
