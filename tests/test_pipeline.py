@@ -642,6 +642,37 @@ def test_real_test_views_are_relit_under_their_own_turned_maps_and_scored(orb):
     assert set(table.metric) == {"psnr_h", "psnr_l", "ssim", "mse"} and np.isfinite(table.value).all()
 
 
+def test_a_capture_whose_mesh_has_no_uvs_and_whose_map_rings_imports_and_runs(repo, orb, tmp_path):
+    """A user's mesh without UVs is unwrapped by xatlas and a lossy map's negative texels cleaned,
+    each with a warning in the import's log, and the capture is estimated."""
+    import shutil
+
+    import yaml
+
+    from freqbrdf.util.io import write_exr
+
+    source = tmp_path / "bare_capture"
+    shutil.copytree(orb["original"] / "results/exports/sphere/studio", source)
+    mesh = read_ply(source / "mesh.ply")
+    (source / "mesh.ply").unlink()
+    lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in mesh.vertices]
+    (source / "mesh.obj").write_text("\n".join(lines + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh.faces]) + "\n")
+    env = read_exr(source / "envmap.exr")
+    i, j = np.unravel_index(np.argmax(env.sum(axis=2)), env.shape[:2])
+    env[i, (j + 1) % env.shape[1]] = -0.1 * env[i, j]  # ringing beside the brightest texel
+    write_exr(source / "envmap.exr", env)
+    config = yaml.safe_load(orb["config"].read_text())
+    config["real_captures"] = {"bare": {"dir": str(source), "env": "bare_env"}}
+    (tmp_path / "bare.yaml").write_text(yaml.safe_dump(config))
+    snakemake(repo, tmp_path / "work", "results/estimates/bare/bare_env/gt/freq", base=tmp_path / "bare.yaml")
+    log = (tmp_path / "work/results/logs/import_capture/bare.log").read_text()
+    assert "mesh.obj: mesh has no texture coordinates (UVs): unwrapped with xatlas" in log
+    assert "envmap.exr: 1 negative and 0 non-finite texels cleaned" in log
+    imported = read_ply(tmp_path / "work/results/imports/bare/mesh.ply")
+    assert imported.uvs.max() <= 1 and len(imported.faces) == len(mesh.faces)
+    assert read_exr(tmp_path / "work/results/estimates/bare/bare_env/gt/freq/roughness.exr").shape == (32, 32)
+
+
 def test_a_changed_file_inside_a_capture_is_re_imported(repo, orb):
     import os
 

@@ -8,6 +8,8 @@ rule fetch_asset_package:
         ASSET_PACKAGE,
     log:
         layout.log("fetch_asset_package"),
+    conda:
+        "../envs/npm.yaml"
     resources:
         mem_mb=memory(500),
         runtime=minutes(5),
