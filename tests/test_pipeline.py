@@ -115,7 +115,7 @@ def test_changing_one_env_reruns_only_what_depends_on_it(repo, run, tmp_path):
     # map's .hdr and the viewers that offer it (the synthetic capture's and the imported copy's)
     assert jobs == {"build_env": 1, "env_spectrum": 1, "env_spectra": 1, "render_capture": 1,
                     "relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1,
-                    "convergence_figure": 1, "export_env": 1, "viewer": 2, "all": 1}
+                    "convergence_figure": 1, "uncertainty_figure": 1, "export_env": 1, "viewer": 2, "all": 1}
     assert "results/captures/sphere/overcast/test" in plan.stdout
 
 
@@ -330,7 +330,8 @@ def test_changing_relight_envs_reruns_only_the_relighting_and_what_reads_it(repo
     changed.write_text("evaluate:\n  relight_envs: [museum, studio]\n")
     plan = snakemake(repo, run, "-n", extra_config=[changed])
     jobs = planned_jobs(plan.stdout)
-    assert jobs == {"relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "all": 1}
+    assert jobs == {"relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1,
+                    "uncertainty_figure": 1, "all": 1}
     assert "results/relight/sphere/studio/gt/freq" in plan.stdout
 
 
@@ -437,8 +438,8 @@ def test_changing_a_metric_setting_reruns_only_metrics_and_report_rules(repo, ru
     changed.write_text("evaluate:\n  hdr_clip: 2.0\n")
     jobs = planned_jobs(snakemake(repo, run, "-n", extra_config=[changed]).stdout)
     # score_real_relight: the imported sphere_copy's relit test views, scored with the same settings
-    assert jobs == {"metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "score_real_relight": 1,
-                    "all": 1}
+    assert jobs == {"metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1, "uncertainty_figure": 1,
+                    "score_real_relight": 1, "all": 1}
 
 
 # The claims' verdict cells: yes, no, within noise, not judged (freqbrdf.report.tables.render.HTML_STYLE).
