@@ -1,7 +1,7 @@
 # Two entry points for a fresh machine (see README):
 #   make run    create .venv if needed, then run the pipeline on config/config.yaml
 #               (make run CONFIG=config/tiny.yaml: a preset, or a file of yours, layered on it)
-#   make test   create .venv and Chromium (report-deps) if needed, then the lint checks and the test suite
+#   make test   create .venv, Chromium (report-deps) and npm (asset-deps) if needed, then the lint checks and the test suite
 #   make report build results/report.html and screenshots of it (CONFIG as for run)
 PYTHON ?= python3
 VENV ?= .venv
@@ -19,7 +19,7 @@ endif
 endif
 CONFIGFILE := $(if $(strip $(CONFIG)),--configfile $(CONFIG))
 
-.PHONY: run test lint bench clean-results report report-deps slurm-test
+.PHONY: run test lint bench clean-results report report-deps asset-deps slurm-test
 
 $(BIN)/.installed: workflow/pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,10 +27,10 @@ $(BIN)/.installed: workflow/pyproject.toml
 	$(BIN)/pip install --quiet -e "./workflow[workflow,test,slurm]"
 	touch $@
 
-run: $(BIN)/.installed
+run: $(BIN)/.installed asset-deps
 	$(BIN)/snakemake --cores $(CORES) $(CONFIGFILE)
 
-test: $(BIN)/.installed report-deps lint
+test: $(BIN)/.installed report-deps asset-deps lint
 	$(BIN)/python -m pytest -q tests
 
 # The SLURM profile on a single-node cluster started for the test (root; tests/slurm_cluster.sh).
@@ -65,7 +65,18 @@ ifeq ($(CHROMIUM),)
 	else echo "report-deps: cannot install chromium (not root, no passwordless sudo); report screenshots are skipped" >&2; fi
 endif
 
-report: $(BIN)/.installed report-deps
+# npm, which fetches the asset package of the captured light and the scans (rule
+# fetch_asset_package, freqbrdf.scene.assets): Debian's npm, installed as chromium is.
+NPM := $(shell command -v npm)
+APT_NPM := apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends npm >/dev/null
+asset-deps:
+ifeq ($(NPM),)
+	@if [ "$$(id -u)" = 0 ]; then $(APT_NPM) || echo "asset-deps: apt-get install npm failed" >&2; \
+	elif sudo -n true 2>/dev/null; then sudo -n sh -c '$(APT_NPM)' || echo "asset-deps: sudo apt-get install npm failed" >&2; \
+	else echo "asset-deps: cannot install npm (not root, no passwordless sudo); captured light and scans need it" >&2; fi
+endif
+
+report: $(BIN)/.installed report-deps asset-deps
 	$(BIN)/snakemake --cores $(CORES) $(CONFIGFILE)
 	$(BIN)/snakemake --report results/report.html $(CONFIGFILE)
 	$(BIN)/python bench/report_screenshot.py results/report.html --out results/report_screenshots

@@ -53,8 +53,8 @@ def fetch_package(directory: Path, npm: str = "npm") -> Path:
         check_integrity(target)
         return target
     if shutil.which(npm) is None:
-        raise RuntimeError(f"{npm}: not found; the captured light comes from the npm package {PACKAGE}@{VERSION} "
-                           f"(install npm, e.g. apt-get install npm, or put {TARBALL} in {directory})")
+        raise RuntimeError(f"{npm}: not found; the captured light and the scans come from the npm package {PACKAGE}@{VERSION} "
+                           f"(make asset-deps installs npm; or put {TARBALL} in {directory})")
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent, prefix=".npm-pack-") as tmp:
         done = subprocess.run([npm, "pack", f"{PACKAGE}@{VERSION}", "--pack-destination", tmp],
