@@ -95,3 +95,12 @@ def test_the_curves_behind_the_scores_include_random_and_an_oracle_below_every_o
     for name in ("entropy", "views", "random"):
         assert np.all(curve["oracle"] <= curve[name] + 1e-12)
     assert np.trapezoid(curve["entropy"] - curve["oracle"], FRACTIONS) == pytest.approx(ause(maps["entropy"], error))
+
+
+def test_a_perfect_estimate_has_no_scores_and_no_curves():
+    from freqbrdf.report.sparsification import sparsification_curves, uncertainty_scores
+
+    maps, errors = {"entropy": np.arange(5.0)}, {"parameter": np.zeros(5)}
+    assert all(np.isnan(v) for v in uncertainty_scores(maps, errors).values())
+    assert set(uncertainty_scores(maps, errors)) == {"ause_entropy_parameter", "ause_random_parameter"}
+    assert sparsification_curves(maps, errors) == []

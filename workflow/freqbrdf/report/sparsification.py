@@ -118,10 +118,15 @@ def uncertainty_scores(maps: Mapping[str, np.ndarray], errors: Mapping[str, np.n
     maps : mapping
         Name -> per-texel uncertainty, shape (N,), larger = less sure.
     errors : mapping
-        Name (``parameter``, ``brdf``) -> per-texel error of the same N texels.
+        Name (``parameter``, ``brdf``) -> per-texel error of the same N texels; an error that
+        is 0 everywhere gives NaN scores.
     """
     scores = {}
     for error_name, error in errors.items():
+        names = [*maps, "random"]
+        if not np.mean(error) > 0:  # a perfect estimate: nothing to rank
+            scores |= {f"ause_{name}_{error_name}": float("nan") for name in names}
+            continue
         scores |= {f"ause_{name}_{error_name}": ause(values, error) for name, values in maps.items()}
         scores[f"ause_random_{error_name}"] = random_ause(error)
     return scores
@@ -139,6 +144,8 @@ def sparsification_curves(maps: Mapping[str, np.ndarray], errors: Mapping[str, n
     """
     records = []
     for error_name, error in errors.items():
+        if not np.mean(error) > 0:  # a perfect estimate: no curve
+            continue
         curves = {name: sparsification_curve(values, error, fractions) for name, values in maps.items()}
         curves["random"] = np.ones(len(fractions))
         curves["oracle"] = sparsification_curve(error, error, fractions)
