@@ -52,28 +52,30 @@ bench: $(BIN)/.installed
 clean-results:
 	rm -rf results .snakemake
 
+# $(call apt_install,TARGET,PACKAGES,WHAT IS LOST): Debian's PACKAGES, installed with apt-get as
+# root or through passwordless sudo; a machine where neither works only warns.
+apt_get = apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $(1) >/dev/null
+define apt_install
+	@if [ "$$(id -u)" = 0 ]; then $(call apt_get,$(2)) || echo "$(1): apt-get install $(2) failed" >&2; \
+	elif sudo -n true 2>/dev/null; then sudo -n sh -c '$(call apt_get,$(2))' || echo "$(1): sudo apt-get install $(2) failed" >&2; \
+	else echo "$(1): cannot install $(2) (not root, no passwordless sudo); $(3)" >&2; fi
+endef
+
 # Headless Chromium for the report screenshots (bench/report_screenshot.py,
-# tests/test_pipeline.py): Debian's chromium package, installed with apt-get as
-# root or through passwordless sudo. A machine where neither works only warns:
-# the screenshot test then skips, except under CI (CI=true), where it fails.
+# tests/test_pipeline.py): the screenshot test skips without it, except under CI
+# (CI=true), where it fails.
 CHROMIUM := $(shell command -v chromium || command -v chromium-browser || command -v google-chrome)
-APT_CHROMIUM := apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium fonts-dejavu-core >/dev/null
 report-deps:
 ifeq ($(CHROMIUM),)
-	@if [ "$$(id -u)" = 0 ]; then $(APT_CHROMIUM) || echo "report-deps: apt-get install chromium failed" >&2; \
-	elif sudo -n true 2>/dev/null; then sudo -n sh -c '$(APT_CHROMIUM)' || echo "report-deps: sudo apt-get install chromium failed" >&2; \
-	else echo "report-deps: cannot install chromium (not root, no passwordless sudo); report screenshots are skipped" >&2; fi
+	$(call apt_install,report-deps,chromium fonts-dejavu-core,report screenshots are skipped)
 endif
 
 # npm, which fetches the asset package of the captured light and the scans (rule
-# fetch_asset_package, freqbrdf.scene.assets): Debian's npm, installed as chromium is.
+# fetch_asset_package, freqbrdf.scene.assets).
 NPM := $(shell command -v npm)
-APT_NPM := apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends npm >/dev/null
 asset-deps:
 ifeq ($(NPM),)
-	@if [ "$$(id -u)" = 0 ]; then $(APT_NPM) || echo "asset-deps: apt-get install npm failed" >&2; \
-	elif sudo -n true 2>/dev/null; then sudo -n sh -c '$(APT_NPM)' || echo "asset-deps: sudo apt-get install npm failed" >&2; \
-	else echo "asset-deps: cannot install npm (not root, no passwordless sudo); captured light and scans need it" >&2; fi
+	$(call apt_install,asset-deps,npm,captured light and scans need it)
 endif
 
 report: $(BIN)/.installed report-deps asset-deps

@@ -43,14 +43,15 @@ def parameter_rows(smk):
     truth = cache(lambda o: read_svbrdf(dict(zip(TEXTURES, truth_files[(o,)]))))
     captures = keyed(p.captures, smk.input.observations)
     entropies = keyed(p.captures, smk.input.entropy)
-    scored = cache(lambda key: (lambda obs: obs.texels.texel[obs.observed])(read_observations(captures[key])))
+    observations = cache(lambda key: read_observations(captures[key]))
+    scored = cache(lambda key: (lambda obs: obs.texels.texel[obs.observed])(observations(key)))
     entropy_atlas = cache(lambda key: read_entropy(entropies[key]).atlas.ravel())
     rows = []
     for obj, env, poses in p.captures:
         entropy = entropy_atlas((obj, env, poses))[scored((obj, env, poses))]
         rows.append(dict(object=obj, env=env, poses=poses, method="", relight_env="", metric="mean_entropy",
                          value=float(entropy.mean())))
-    baselines = cache(lambda key: baseline_maps(read_observations(captures[key])))
+    baselines = cache(lambda key: baseline_maps(observations(key)))
     curves = []
     for (obj, env, poses, method), directory in keyed(p.synthetic, smk.input.estimates).items():
         estimate, texels = read_svbrdf(directory), scored((obj, env, poses))
