@@ -264,6 +264,40 @@ def band_limited_envmap(envmap: np.ndarray, a_prime: float, lmax: int | None = N
     return filter_equirect(envmap, np.exp(-((a_prime * np.arange(lmax + 1)) ** 2))).astype(np.float32)
 
 
+def equirect_corners(dirs: np.ndarray, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """The four pixels of an equirect map around each direction and their bilinear weights.
+
+    Pixel centres as `freqbrdf.sphere.sampling.equirect_directions` (rows from pole to
+    pole, columns wrapping in azimuth), as Mitsuba's envmap interpolates.
+
+    Parameters
+    ----------
+    dirs : numpy.ndarray
+        Shape ``(..., 3)``, unit directions.
+    height, width : int
+        Map size (``height >= 2``).
+
+    Returns
+    -------
+    index : numpy.ndarray
+        Shape ``(..., 4)``, int64: flat pixel indices ``row * width + column``.
+    weight : numpy.ndarray
+        Shape ``(..., 4)``, float64: bilinear weights, summing to 1.
+    """
+    theta = np.arccos(np.clip(dirs[..., 1], -1.0, 1.0))
+    phi = np.mod(np.arctan2(dirs[..., 0], -dirs[..., 2]), 2.0 * np.pi)
+    row = theta / np.pi * (height - 1)
+    col = phi / (2.0 * np.pi) * width - 0.5
+    r0 = np.clip(np.floor(row).astype(np.int64), 0, height - 2)
+    c0 = np.floor(col).astype(np.int64)
+    fr = row - r0
+    fc = col - c0
+    c0, c1 = np.mod(c0, width), np.mod(c0 + 1, width)
+    index = np.stack([r0 * width + c0, r0 * width + c1, (r0 + 1) * width + c0, (r0 + 1) * width + c1], axis=-1)
+    weight = np.stack([(1.0 - fr) * (1.0 - fc), (1.0 - fr) * fc, fr * (1.0 - fc), fr * fc], axis=-1)
+    return index, weight
+
+
 def sample_equirect(envmap: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     """Bilinear lookup of an equirect map along world directions, as Mitsuba's envmap does.
 
@@ -278,18 +312,8 @@ def sample_equirect(envmap: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     ndarray, shape (..., C)
     """
     h, w = envmap.shape[:2]
-    theta = np.arccos(np.clip(dirs[..., 1], -1.0, 1.0))
-    phi = np.mod(np.arctan2(dirs[..., 0], -dirs[..., 2]), 2.0 * np.pi)
-    row = theta / np.pi * (h - 1)
-    col = phi / (2.0 * np.pi) * w - 0.5
-    r0 = np.clip(np.floor(row).astype(np.int64), 0, h - 2)
-    c0 = np.floor(col).astype(np.int64)
-    fr = (row - r0)[..., None]
-    fc = (col - c0)[..., None]
-    c0, c1 = np.mod(c0, w), np.mod(c0 + 1, w)
-    top = envmap[r0, c0] * (1.0 - fc) + envmap[r0, c1] * fc
-    bottom = envmap[r0 + 1, c0] * (1.0 - fc) + envmap[r0 + 1, c1] * fc
-    return top * (1.0 - fr) + bottom * fr
+    index, weight = equirect_corners(dirs, h, w)
+    return np.einsum("...j,...jc->...c", weight, envmap.reshape(h * w, -1)[index])
 
 
 def bilinear_views(images: np.ndarray, view: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -30,6 +30,7 @@ All directions and coefficients are in the world frame (+Y up, see
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,7 @@ __all__ = [
     "extract_point_sources",
     "light_quadrature",
     "shadowed_light",
+    "project_factors",
     "irradiance",
     "downsample_equirect",
 ]
@@ -294,23 +296,59 @@ def shadowed_light(
         alpha = np.asarray(alpha, dtype=np.float64)
         if alpha.shape != (n.shape[0],):
             raise ValueError(f"alpha must have shape ({n.shape[0]},), got shape {alpha.shape}")
+    normals32 = n.astype(np.float32)
+    alpha = np.zeros(n.shape[0]) if alpha is None else alpha  # alpha 0: G1 = 1 above the horizon
+    return project_factors(
+        quadrature, n.shape[0], lambda a, b, dirs, out: shadowing_factors(normals32[a:b], dirs, alpha[a:b], out), workers
+    )
+
+
+def project_factors(
+    quadrature: LightQuadrature, n_columns: int, factors: Callable[[int, int, np.ndarray, np.ndarray], None],
+    workers: int = 1, multiple: int = 1,
+) -> np.ndarray:
+    """SH coefficients of the quadrature's light times each of ``n_columns`` functions on the nodes.
+
+    ``out[j, lm] = sum_q f_j(w_q) weighted_radiance_q Y_lm(w_q)``, column by column:
+    ``factors(a, b, directions, out)`` writes ``f_j`` for ``a <= j < b`` at the nodes
+    ``directions`` (3, Q) into ``out`` (b - a, Q), float32 (`shadowed_light`: ``G1`` at a texel's
+    normal and roughness).
+
+    Parameters
+    ----------
+    quadrature : LightQuadrature
+        Nodes of the environment (`light_quadrature`).
+    n_columns : int
+        Number of functions.
+    factors : callable
+        Writes the functions' values at the nodes, a block of columns at a time.
+    workers : int
+        Threads of ``factors`` (the matrix products use BLAS's own).
+    multiple : int
+        Every block of columns but the last starts and ends at a multiple of this.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(n_columns, (lmax+1)**2, C)``, float32 (a transposed view: columns are
+        the fastest axis in memory).
+    """
     q = quadrature
     n_coef = q.basis.shape[1]
     n_ch = q.weighted_radiance.shape[1]
     n_orders = q.polar.shape[0]
-    # products with the texels on the last axis: every operand is a (possibly transposed)
+    # products with the columns on the last axis: every operand is a (possibly transposed)
     # matrix that BLAS takes as it is, so no intermediate is copied or transposed
     azimuthal = np.ascontiguousarray(q.azimuthal.transpose(0, 2, 1))  # (n, C*M, 2n)
     polar = np.ascontiguousarray(q.polar.transpose(0, 2, 1))  # (M, L, n)
     dirs = np.ascontiguousarray(q.directions.T, dtype=np.float32)
-    normals32 = n.astype(np.float32)
-    alpha = np.zeros(n.shape[0]) if alpha is None else alpha  # alpha 0: G1 = 1 above the horizon
-    out = np.empty((n_ch, n_coef, n.shape[0]), np.float32)
-    g = np.empty((min(n.shape[0], _TEXEL_CHUNK), dirs.shape[1]), np.float32)
+    out = np.empty((n_ch, n_coef, n_columns), np.float32)
+    block = max(multiple, _TEXEL_CHUNK - _TEXEL_CHUNK % multiple)
+    g = np.empty((min(n_columns, block), dirs.shape[1]), np.float32)
     set_threads(workers)
-    for a in range(0, n.shape[0], _TEXEL_CHUNK):
-        b = min(n.shape[0], a + _TEXEL_CHUNK)
-        shadowing_factors(normals32[a:b], dirs, alpha[a:b], g[: b - a])
+    for a in range(0, n_columns, block):
+        b = min(n_columns, a + block)
+        factors(a, b, dirs, g[: b - a])
         # sum over each ring's azimuths, then over rings (LightQuadrature): about 6 times
         # fewer operations than one product with every node's Y_lm
         rings = np.matmul(azimuthal, g[: b - a].reshape(b - a, q.n_rings, -1).transpose(1, 2, 0))  # (n, C*M, t)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["degree_sums_kernel", "shadowing_kernel", "l1_kernel", "grid_kernel", "lm_kernel"]
+__all__ = ["degree_sums_kernel", "shadowing_kernel", "basis_factors_kernel", "table_sums_kernel", "l1_kernel", "grid_kernel", "lm_kernel"]
 
 _INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
 _SQRT2 = np.sqrt(2.0)
@@ -101,6 +101,62 @@ def shadowing_kernel(normals, directions, alpha, out):  # pragma: no cover - com
             cc = max(c, np.float32(1e-6))
             g = np.float32(2.0) / (one + np.sqrt(one + a2 * (one / (cc * cc) - one)))
             out[t, q] = g if c > 0 else np.float32(0.0)
+
+
+@numba.njit(parallel=True, cache=True, fastmath=_FAST)
+def basis_factors_kernel(normals, directions, u, out):  # pragma: no cover - compiled
+    rank = u.shape[0]
+    last = u.shape[1] - 1
+    zero = np.float32(0.0)
+    for t in numba.prange(normals.shape[0]):
+        nx, ny, nz = normals[t, 0], normals[t, 1], normals[t, 2]
+        for q in range(directions.shape[1]):
+            c = nx * directions[0, q] + ny * directions[1, q] + nz * directions[2, q]
+            if c <= zero:
+                for k in range(rank):
+                    out[t * rank + k, q] = zero
+                continue
+            x = min(c, np.float32(1.0)) * last
+            j = min(int(x), last - 1)
+            f = x - j
+            for k in range(rank):
+                out[t * rank + k, q] = u[k, j] + f * (u[k, j + 1] - u[k, j])
+
+
+@numba.njit(parallel=True, cache=True)
+def table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirror, a, b, out):  # pragma: no cover
+    rank, size = coefficients.shape[1], coefficients.shape[2]  # size: (lmax + 1)^2 x 3, coefficient-major
+    lmax = out.shape[1] - 1
+    n = slots.shape[0]
+    for blk in numba.prange((n + _TEXELS - 1) // _TEXELS):
+        lg = np.empty(size, np.float32)
+        y = np.empty((lmax + 1) * (lmax + 1))
+        for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
+            lg[:] = 0.0
+            for j in range(corner.shape[1]):
+                for r in range(rank):
+                    w = np.float32(corner_weight[i, j] * v[i, r])
+                    if w != 0.0:
+                        row = coefficients[corner[i, j], r]
+                        for q in range(size):
+                            lg[q] += w * row[q]
+            s = slots[i]
+            for p in range(start[s], start[s + 1]):
+                d = mirror[p]
+                norm = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+                _real_sh_point(d[0] / norm, d[1] / norm, d[2] / norm, lmax, a, b, y)
+                for l in range(lmax + 1):  # RGB: three running sums, one pass over the degree's coefficients
+                    r_sum = 0.0
+                    g_sum = 0.0
+                    b_sum = 0.0
+                    for k in range(l * l, (l + 1) * (l + 1)):
+                        yk = y[k]
+                        r_sum += lg[3 * k] * yk
+                        g_sum += lg[3 * k + 1] * yk
+                        b_sum += lg[3 * k + 2] * yk
+                    out[p, l, 0] = r_sum
+                    out[p, l, 1] = g_sum
+                    out[p, l, 2] = b_sum
 
 
 @numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples

@@ -24,7 +24,7 @@ import numpy as np
 from freqbrdf.estimate.optimise import compiled
 from freqbrdf.sphere.brdf import ALPHA_MIN, R0_DIELECTRIC
 
-__all__ = ["PairData", "KernelModel", "LmStep", "degree_sums", "shadowing_factors", "l1_loss_gradient",
+__all__ = ["PairData", "KernelModel", "LmStep", "degree_sums", "shadowing_factors", "basis_factors", "table_sums", "l1_loss_gradient",
            "grid_search", "lm_sweep"]
 
 
@@ -160,6 +160,59 @@ def shadowing_factors(normals: np.ndarray, directions: np.ndarray, alpha: np.nda
         Shape ``(T, Q)``, float32, written in place.
     """
     compiled.shadowing_kernel(normals, directions, alpha, out)
+
+
+def basis_factors(normals: np.ndarray, directions: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
+    """The shadowing basis functions ``u_k(n . w)`` of every normal and direction, 0 below the horizon.
+
+    The separable form of `shadowing_factors` (`freqbrdf.estimate.light.ShadowingBasis`):
+    ``u_k`` is tabulated at ``P`` even steps of ``cos theta`` in [0, 1] and interpolated linearly.
+
+    Parameters
+    ----------
+    normals : numpy.ndarray
+        Shape ``(T, 3)``, float32, unit.
+    directions : numpy.ndarray
+        Shape ``(3, Q)``, float32, unit (one direction per column).
+    u : numpy.ndarray
+        Shape ``(R, P)``, float32: the basis functions' samples.
+    out : numpy.ndarray
+        Shape ``(T R, Q)``, float32, written in place: row ``t R + k`` is ``u_k`` of normal t.
+    """
+    compiled.basis_factors_kernel(normals, directions, u, out)
+
+
+def table_sums(
+    coefficients: np.ndarray, corner: np.ndarray, corner_weight: np.ndarray, v: np.ndarray, slots: np.ndarray,
+    start: np.ndarray, mirror: np.ndarray, a: np.ndarray, b: np.ndarray, out: np.ndarray,
+) -> None:
+    """`degree_sums` of the pairs of texels ``slots`` whose light comes from a table.
+
+    The light of texel i is ``sum_j corner_weight[i, j] sum_k v[i, k] coefficients[corner[i, j], k]``
+    (`freqbrdf.estimate.light_table.ShadowedLightTable`: interpolated between the grid normals
+    around the texel's normal, combined over the shadowing basis at its roughness), assembled
+    once per texel in a buffer and evaluated at its pairs' mirror directions.
+
+    Parameters
+    ----------
+    coefficients : numpy.ndarray
+        Shape ``(G, R, 3 (lmax+1)^2)``, float32: SH coefficients per grid normal and basis
+        function, coefficient-major (``3 lm + c``; RGB only).
+    corner, corner_weight : numpy.ndarray
+        Shape ``(S, J)``, int64 and float64: the grid normals around each texel and their weights.
+    v : numpy.ndarray
+        Shape ``(S, R)``, float64: each basis function's weight at the texel's roughness.
+    slots : numpy.ndarray
+        Shape ``(S,)``, int64: the texels, as positions into ``start``.
+    start : numpy.ndarray
+        Shape ``(T_obs + 1,)``, int64: first pair of each texel (pairs sorted by texel).
+    mirror, a, b, out : numpy.ndarray
+        As `degree_sums` with ``C = 3``; ``out`` is written at the pairs of ``slots``.
+    """
+    if out.shape[2] != 3 or coefficients.shape[2] != 3 * out.shape[1] ** 2:
+        raise ValueError(f"table_sums needs RGB coefficients of degree {out.shape[1] - 1}, got rows of "
+                         f"{coefficients.shape[2]} for output of shape {out.shape}")
+    compiled.table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirror, a, b, out)
 
 
 def _table(lobe: np.ndarray | None, terms: np.ndarray) -> np.ndarray:

@@ -11,7 +11,8 @@ import numpy as np
 
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature, PointSources, extract_point_sources, irradiance, light_quadrature, shadowed_light
-from freqbrdf.estimate.optimise.kernels import KernelModel, degree_sums, grid_search, l1_loss_gradient
+from freqbrdf.estimate.light_table import ShadowedLightTable, shadowed_light_table
+from freqbrdf.estimate.optimise.kernels import KernelModel, degree_sums, grid_search, l1_loss_gradient, table_sums
 from freqbrdf.estimate.optimise.problem import Problem, check_params
 from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings, method_terms
 from freqbrdf.methods import get_method
@@ -84,13 +85,15 @@ def light_terms(
     shadowing: bool,
     light: LightQuadrature,
     workers: int = 1,
+    table: ShadowedLightTable | None = None,
 ) -> np.ndarray:
     """Per-degree contributions of the (shadowed) environment light at each observation.
 
     With shadowing, ``Lg`` is the SH fit (degree ``light.lmax``) of
     ``G1(theta_i, alpha) L`` over each texel's upper hemisphere by dense
     quadrature of the known environment (paper section 4.2, Fig. 2:
-    :func:`freqbrdf.estimate.light.shadowed_light`); without it, ``Lg`` is the
+    :func:`freqbrdf.estimate.light.shadowed_light`), or interpolated from ``table``
+    (:class:`freqbrdf.estimate.light_table.ShadowedLightTable`); without it, ``Lg`` is the
     environment's own SH, as in Ramamoorthi and Hanrahan (2001). Then
     ``P[n, l, c] = sum_m Lg_lm,c Y_lm(w_r,n)`` at the world mirror direction.
 
@@ -107,6 +110,8 @@ def light_terms(
         The environment (:func:`freqbrdf.estimate.light.light_quadrature`).
     workers : int
         Threads of the evaluation.
+    table : ShadowedLightTable, optional
+        ``light``'s shadowed light tabulated (`freqbrdf.estimate.light_table.shadowed_light_table`).
 
     Returns
     -------
@@ -121,7 +126,7 @@ def light_terms(
     workers = check_int(workers, "workers", 1)
     out = np.empty((problem.n_pairs, light.lmax + 1, 3), dtype=problem.dtype)
     if shadowing:
-        refit_light(out, r, problem, light, np.arange(problem.n_observed), workers)
+        refit_light(out, r, problem, light, np.arange(problem.n_observed), workers, table)
     else:
         lg = (light.basis.T.astype(np.float64) @ light.weighted_radiance)[None]  # (1, n, 3)
         pairs = np.arange(problem.n_pairs)
@@ -131,12 +136,23 @@ def light_terms(
 
 def refit_light(
     out: np.ndarray, roughness: np.ndarray, problem: Problem, light: LightQuadrature, slots: np.ndarray,
-    workers: int,
+    workers: int, table: ShadowedLightTable | None = None,
 ) -> None:
     """Refit the shadowed light of the observed texels ``slots`` (positions into ``problem.observed``)
-    at ``roughness`` and overwrite their observations' rows of ``out`` (`light_terms`)."""
-    alpha = alpha_from_roughness(roughness[problem.observed[slots]])[0]
-    lg = shadowed_light(light, problem.normal[problem.observed[slots]], alpha, workers)  # (s, n, 3)
+    at ``roughness`` and overwrite their observations' rows of ``out`` (`light_terms`); from
+    ``table`` where given."""
+    texels = problem.observed[slots]
+    if table is not None:
+        a, b = recurrence_tables(out.shape[1] - 1)
+        set_threads(workers)
+        coefficients = table.coefficients.reshape(*table.coefficients.shape[:2], -1)  # coefficient-major rows
+        corner, weight, v = table.weights(problem.normal[texels], roughness[texels])
+        # texels in the order of their grid normals: neighbours share the table's rows in cache
+        order = np.argsort(corner[:, 0], kind="stable")
+        table_sums(coefficients, corner[order], weight[order], v[order], np.asarray(slots, dtype=np.int64)[order],
+                   problem.start, problem.mirror, a, b, out)
+        return
+    lg = shadowed_light(light, problem.normal[texels], alpha_from_roughness(roughness[texels])[0], workers)
     local = np.full(problem.n_observed, -1, dtype=np.int64)
     local[slots] = np.arange(slots.shape[0])
     pairs = np.nonzero(local[problem.pair_slot] >= 0)[0]
@@ -320,12 +336,15 @@ class ForwardModel:
         Shadow the light by ``G1(theta_i)`` at each texel's roughness (refitted as it moves).
     kernel : KernelModel
         Masking, the lobe and view tables and the point sources, as the kernels read them.
+    table : ShadowedLightTable, optional
+        The shadowed light tabulated (``settings.light_table``); None: fitted per texel.
     """
 
     problem: Problem
     light: LightQuadrature
     shadowing: bool
     kernel: KernelModel
+    table: ShadowedLightTable | None = None
 
     @classmethod
     def of(cls, problem: Problem, light: LightQuadrature, method: str, settings: OptimiseSettings) -> ForwardModel:
@@ -333,15 +352,17 @@ class ForwardModel:
         shadowing, masking = method_terms(method)
         lobe, view = model_tables(settings, method, light.lmax)
         point = point_terms(problem, light.sources, shadowing)
-        return cls(problem, light, shadowing, KernelModel(masking, lobe, view, point))
+        size = settings.light_table
+        table = shadowed_light_table(light, size.rows, size.rank, settings.workers) if shadowing and size.rows else None
+        return cls(problem, light, shadowing, KernelModel(masking, lobe, view, point), table)
 
     def light_terms(self, roughness: np.ndarray, workers: int) -> np.ndarray:
         """`light_terms` of every observation at ``roughness`` (T,)."""
-        return light_terms(roughness, self.problem, self.shadowing, self.light, workers)
+        return light_terms(roughness, self.problem, self.shadowing, self.light, workers, self.table)
 
     def refit(self, terms: np.ndarray, roughness: np.ndarray, slots: np.ndarray, workers: int) -> None:
         """`refit_light` of the observed texels ``slots`` into ``terms``."""
-        refit_light(terms, roughness, self.problem, self.light, slots, workers)
+        refit_light(terms, roughness, self.problem, self.light, slots, workers, self.table)
 
     def objective(self, xp: np.ndarray, terms: np.ndarray, tv_weight: float) -> tuple[float, np.ndarray]:
         """`loss_and_gradient` of internal-order parameters ``xp`` (T, 5), unchecked: the solvers' inner loop."""

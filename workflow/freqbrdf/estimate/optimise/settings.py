@@ -8,6 +8,7 @@ from typing import Mapping
 
 import numpy as np
 
+from freqbrdf.estimate.light_table import TableSize
 from freqbrdf.methods import get_method
 from freqbrdf.sphere.brdf import ALPHA_MIN
 from freqbrdf.sphere.lobes import DIFFUSE_LOBES, LOBES, VIEW_WEIGHTS, ggx_lobe_spectrum
@@ -75,6 +76,10 @@ class OptimiseSettings:
         Lower bound of the fitted roughness, in [0, 1), e.g.
         `identifiable_roughness` of the light's degree: below it the model
         does not resolve the lobe (docs/method.md, "Identifiable roughness").
+    light_table : TableSize
+        The shadowed light from one table per environment
+        (`freqbrdf.estimate.light_table.ShadowedLightTable`), or with ``rows`` 0
+        fitted per texel at every refit (`freqbrdf.estimate.light.shadowed_light`).
     sweep_tolerance : float
         ``lm``: stop once a sweep lowers the objective by less than this
         fraction (after the last refit).
@@ -113,6 +118,7 @@ class OptimiseSettings:
     refit_every: int
     tv_weight: float
     min_roughness: float
+    light_table: TableSize
     sweep_tolerance: float = 1e-4
     irls_floor: float = 1e-2
     tv_floor: float = 1e-2
@@ -150,6 +156,8 @@ class OptimiseSettings:
             raise ValueError(f"refit_tolerance must be a finite number >= 0, got {self.refit_tolerance!r}")
         if not (np.isfinite(self.tv_weight) and self.tv_weight >= 0):
             raise ValueError(f"tv_weight must be a finite number >= 0, got {self.tv_weight!r}")
+        if not isinstance(self.light_table, TableSize):
+            raise TypeError(f"light_table must be a TableSize, got {type(self.light_table).__name__}")
         if not 0.0 <= self.min_roughness < 1.0:
             raise ValueError(f"min_roughness must be in [0, 1), got {self.min_roughness!r}")
 
@@ -159,7 +167,8 @@ class OptimiseSettings:
 
         From the paper: the Gaussian lobe ``exp(-(alpha l)^2)``, the specular
         weight ``F(theta_o) G1(theta_o)`` per view, the Lambertian diffuse term,
-        TV weight 1e-3, no roughness bound. From the authors' code (METHOD.md
+        TV weight 1e-3, no roughness bound, the shadowed light fitted per texel
+        (``light_table`` rows 0). From the authors' code (METHOD.md
         section 5): Adam, lr 0.02 (of 0.01-0.02), 150 iterations (of 100-200),
         the shadowed light refitted every 50. This project's, not the paper's:
         the grid start (the authors start from 0.5 or the spectrum search) and
@@ -178,7 +187,7 @@ class OptimiseSettings:
         """
         preset = cls(solver="adam", lobe="gaussian", view_weight="paper", diffuse="lambert", sweeps=12,
                      sweep_refit_every=4, iterations=150, grid_start=True, lr=0.02, refit_every=50,
-                     tv_weight=1e-3, min_roughness=0.0)
+                     tv_weight=1e-3, min_roughness=0.0, light_table=TableSize(rows=0, rank=4))
         return replace(preset, **overrides)
 
     @classmethod
@@ -190,7 +199,7 @@ class OptimiseSettings:
                    diffuse=config["diffuse"], sweeps=config["sweeps"],
                    sweep_refit_every=config["sweep_refit_every"],
                    iterations=config["iterations"], lr=config["lr"], refit_every=config["refit_every"],
-                   tv_weight=config["tv_weight"], workers=workers, grid_start=config["init"] == "grid",
+                   tv_weight=config["tv_weight"], workers=workers, light_table=TableSize(**config["light_table"]), grid_start=config["init"] == "grid",
                    min_roughness=identifiable_roughness(config["lmax"], lobe=config["lobe"]) if bound == "auto"
                    else float(bound))
 

@@ -4,6 +4,8 @@ refitted as the roughness moves."""
 
 from __future__ import annotations
 
+import logging
+import time
 from typing import Mapping
 
 import numpy as np
@@ -11,13 +13,14 @@ import numpy as np
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature
 from freqbrdf.estimate.optimise.kernels import LmStep, lm_sweep
-from freqbrdf.estimate.optimise.model import ForwardModel
+from freqbrdf.estimate.optimise.model import ForwardModel, estimate_light
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params, unpack_params
 from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings, method_terms
+from freqbrdf.methods import get_method
 from freqbrdf.util.threads import set_threads
 from freqbrdf.util.validation import check_int
 
-__all__ = ["adam_step", "optimise"]
+__all__ = ["adam_step", "optimise", "estimate_capture"]
 
 _LM_TRIES = 4  # damping increases per texel and LM sweep before its step is given up
 
@@ -115,6 +118,66 @@ def optimise(
     x = np.empty_like(xp)
     x[perm] = xp
     return unpack_params(x), curve
+
+
+def estimate_capture(
+    obs: Observations,
+    envmap: np.ndarray,
+    method: str,
+    config: Mapping[str, object],
+    workers: int,
+    init: Mapping[str, np.ndarray] | None = None,
+    log: logging.Logger | None = None,
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """One capture's estimate by ``method``, as rule ``optimise_svbrdf`` makes it: the method's
+    light and the irradiance (`estimate_light`), then `optimise` with the settings of
+    config ``optimise``, each step logged with its time.
+
+    Parameters
+    ----------
+    obs : Observations
+        The capture's observations.
+    envmap : numpy.ndarray
+        Shape ``(H, W, 3)``, the environment that lit it.
+    method : str
+        A method of rule ``optimise_svbrdf``.
+    config : mapping
+        Config ``optimise``.
+    workers : int
+        Threads.
+    init : mapping, optional
+        Start parameters (`optimise`'s ``init``).
+    log : logging.Logger, optional
+        Where the steps are logged (default: this module's logger).
+
+    Returns
+    -------
+    params, loss_curve
+        As `optimise`.
+    """
+    log = log or logging.getLogger(__name__)
+    settings = OptimiseSettings.from_config(config, workers=workers)
+    log.info("roughness bounded below by %.3f (optimise.min_roughness: %s)", settings.min_roughness,
+             config["min_roughness"])
+    start = time.perf_counter()
+    light, e = estimate_light(envmap, obs, method, config["lmax"], config["point_sources"])
+    prefilter = "a' = %.3f" % obs.a_prime if get_method(method).prefiltered else "none"
+    log.info("light at degree %d (pre-filter %s) from %d quadrature nodes, irradiance at %d normals in %.1f s",
+             config["lmax"], prefilter, len(light.directions), len(obs.texels), time.perf_counter() - start)
+    if light.sources is not None:
+        points = light.sources.power.sum()
+        log.info("%d point sources outside the SH light (optimise.point_sources: %s), %.1f%% of the map's power",
+                 len(light.sources.power), config["point_sources"],
+                 100.0 * points / (points + light.weighted_radiance.sum()))
+    params, curve = optimise(obs, e, light, init=init, method=method, settings=settings)
+    if settings.solver == "adam":
+        done = f"{settings.iterations} Adam steps, loss {curve[0]:.4g} -> {curve[-1]:.4g}"
+        if curve[-1] > curve[0]:  # it ended above its start: the iterate of lowest loss is kept
+            done += f", above the start: kept {curve.min():.4g} (after {int(np.argmin(curve))} steps)"
+    else:
+        done = f"{len(curve)} LM sweeps, loss {curve[0]:.4g} -> {curve[-1]:.4g} (at the last sweep's start)"
+    log.info("%s: %s in %.1f s", method, done, time.perf_counter() - start)
+    return params, curve
 
 
 def _start(model: ForwardModel, init: Mapping[str, np.ndarray] | None, settings: OptimiseSettings) -> np.ndarray:

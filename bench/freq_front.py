@@ -1,0 +1,124 @@
+"""Time against accuracy of the frequency-domain estimator (method ``freq``) over its cost settings.
+
+Each setting is config ``optimise`` (config/config.yaml) with named changes (`SETTINGS`), and
+each (capture, setting) runs as its own job in a fresh Python process, as rule
+``optimise_svbrdf`` does: imports, reading the observations and the map, the method's light,
+the optimiser (`freqbrdf.estimate.optimise.solve.estimate_capture`) and writing the textures.
+The time is that process's wall time, start-up included, on 2 threads; the accuracy is the
+parameter MSE against the ground truth over the observed texels (as `bench/optimise_bench.py`).
+Every input comes from the results directory (`freqbrdf.layout.RESULTS`, or ``FREQBRDF_RESULTS``):
+choose settings on the tuning captures (config/tuning.yaml), report them on the default ones.
+
+    python bench/freq_front.py --captures die/museum vase/sunset
+    python bench/freq_front.py --captures sphere/studio --settings default "table off"
+
+Writes ``bench/out/freq_front.tsv``: one row per capture and setting, and a mean row per setting.
+A first job, not recorded, fills numba's cache, so every timed job loads compiled kernels as a
+pipeline job does after the first. Time it on an otherwise idle machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+OUT = REPO / "bench" / "out"
+# label: changes to config `optimise` (nested blocks replace only the keys they name)
+SETTINGS = {
+    "default": {},
+    "table off": {"light_table": {"rows": 0}},
+    "table 32 rows": {"light_table": {"rows": 32}},
+    "table 48 rows": {"light_table": {"rows": 48}},
+    "table 96 rows": {"light_table": {"rows": 96}},
+    "table rank 6": {"light_table": {"rank": 6}},
+}
+
+
+def run_job(capture: str, label: str, results: Path) -> dict:
+    """One job in this process: estimate ``capture`` with ``label``'s settings; its MSE and phase times."""
+    import numpy as np
+    import yaml
+
+    from freqbrdf import layout
+    from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf, write_svbrdf
+    from freqbrdf.config import merge_config
+    from freqbrdf.estimate.optimise.solve import estimate_capture
+    from freqbrdf.sphere.brdf import TEXTURES
+    from freqbrdf.util.io import read_exr
+
+    imported = time.perf_counter()
+    obj, env = capture.split("/")
+    config = yaml.safe_load((REPO / "config" / "config.yaml").read_text())["optimise"]
+    config = merge_config(config, SETTINGS[label])
+    obs = read_observations(layout.located(layout.OBSERVATIONS, results, object=obj, env=env, poses="gt"))
+    envmap = read_exr(layout.located(layout.ENVMAP, results, env=env))
+    start = time.perf_counter()
+    params, curve = estimate_capture(obs, envmap, "freq", config, 2)
+    estimated = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        write_svbrdf(Path(tmp), Svbrdf.from_texels(obs.texels.resolution, obs.texels.texel, params, obs.observed))
+    written = time.perf_counter()
+    truth = read_svbrdf({g: layout.located(layout.OBJECT_TEXTURE, results, object=obj, texture=g) for g in TEXTURES})
+    truth = truth.at_texels(obs.texels.texel)
+    seen = obs.observed
+    mse = {g: float(np.mean((np.asarray(params[g])[seen] - np.asarray(truth[g], dtype=np.float64)[seen]) ** 2))
+           for g in TEXTURES}
+    return {"mse": mse, "inputs_s": start - imported, "estimate_s": estimated - start,
+            "write_s": written - estimated, "final_loss": float(curve[-1])}
+
+
+def measure(capture: str, label: str, results: Path) -> dict:
+    """Run one job in a fresh process; its wall time beside what it reports."""
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, __file__, "--job", capture, label, "--results", str(results)],
+                          capture_output=True, text=True, check=False)
+    seconds = time.perf_counter() - start
+    if done.returncode:
+        raise SystemExit(f"{capture} / {label} failed:\n{done.stderr[-3000:]}")
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    row = {"capture": capture, "setting": label, "seconds": round(seconds, 2)}
+    row |= {k: round(v, 5) for k, v in report["mse"].items()}
+    row["mean"] = round(sum(report["mse"].values()) / len(report["mse"]), 5)
+    row |= {k: round(report[k], 2) for k in ("inputs_s", "estimate_s", "write_s")}
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--captures", nargs="+", default=["sphere/studio"], help="object/env (gt poses)")
+    parser.add_argument("--settings", nargs="+", choices=list(SETTINGS), default=list(SETTINGS))
+    parser.add_argument("--results", type=Path, default=None, help="results directory (default: FREQBRDF_RESULTS or ./results)")
+    parser.add_argument("--job", nargs=2, metavar=("CAPTURE", "SETTING"), help=argparse.SUPPRESS)
+    parser.add_argument("--out", type=Path, default=OUT / "freq_front.tsv")
+    args = parser.parse_args()
+    from freqbrdf import layout
+
+    results = args.results or Path(os.environ.get("FREQBRDF_RESULTS", REPO / layout.RESULTS))
+    if args.job:
+        print(json.dumps(run_job(*args.job, results)))
+        return
+    import pandas as pd
+
+    measure(args.captures[0], args.settings[0], results)  # warm-up: numba compiles its kernels into its cache once
+    rows = []
+    for label in args.settings:
+        per_capture = []
+        for capture in args.captures:
+            per_capture.append(measure(capture, label, results))
+            print(per_capture[-1], flush=True)
+        mean = pd.DataFrame(per_capture).drop(columns=["capture", "setting"]).mean().round(5).to_dict()
+        rows += per_capture + [{"capture": "mean", "setting": label, **mean}]
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame(rows).to_csv(args.out, sep="\t", index=False)
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
