@@ -38,6 +38,12 @@ SETTINGS = {
     "table 48 rows": {"light_table": {"rows": 48}},
     "table 96 rows": {"light_table": {"rows": 96}},
     "table rank 6": {"light_table": {"rank": 6}},
+    "100 steps": {"iterations": 100, "refit_every": 34},
+    "75 steps": {"iterations": 75, "refit_every": 25},
+    "75 steps, lr 0.1": {"iterations": 75, "refit_every": 25, "lr": 0.1},
+    "50 steps": {"iterations": 50, "refit_every": 17},
+    "50 steps, lr 0.1": {"iterations": 50, "refit_every": 17, "lr": 0.1},
+    "30 steps, lr 0.1": {"iterations": 30, "refit_every": 10, "lr": 0.1},
 }
 
 
