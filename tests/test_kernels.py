@@ -12,7 +12,7 @@ def test_degree_sums_are_per_degree_sums_of_the_expansion_times_real_sh(lmax: in
     rng = np.random.default_rng(lmax)
     n_pairs, n_exp, n = 700, 40, (lmax + 1) ** 2
     mirror = rng.normal(size=(n_pairs, 3)) * rng.uniform(0.5, 2.0, (n_pairs, 1))  # not unit: normalised inside
-    lg = rng.normal(size=(3, n, n_exp)).astype(np.float32).transpose(2, 1, 0)  # strided, as shadowed_light's
+    lg = rng.normal(size=(3, n, n_exp)).astype(np.float32).transpose(2, 1, 0)  # any strides
     rows = rng.integers(0, n_exp, n_pairs)
     pairs = rng.permutation(n_pairs)[:500]
     out = np.full((n_pairs, lmax + 1, 3), np.nan, np.float32)

@@ -38,7 +38,7 @@ import numpy as np
 from freqbrdf.estimate.optimise.kernels import shadowing_factors
 from freqbrdf.util.threads import set_threads
 from freqbrdf.capture.observations import sample_equirect
-from freqbrdf.sphere.sh import angles_to_directions, project_equirect, real_sh, sh_degrees
+from freqbrdf.sphere.sh import angles_to_directions, eval_rings, project_equirect, real_sh, ring_factors, sh_degrees
 from freqbrdf.sphere.sampling import equirect_directions, equirect_solid_angles
 
 __all__ = [
@@ -232,7 +232,7 @@ def light_quadrature(envmap: np.ndarray, lmax: int, prefilter: float = 0.0, ligh
     phi = 2.0 * np.pi * (np.arange(2 * n) + 0.5) / (2 * n)
     directions = angles_to_directions(np.arccos(t)[:, None], phi[None, :]).reshape(-1, 3)
     weights = np.repeat(w_t * (2.0 * np.pi / (2 * n)), 2 * n)
-    weighted = (real_sh(directions, light_lmax) @ coeffs) * weights[:, None]
+    weighted = eval_rings(coeffs, np.arccos(t), phi).reshape(-1, coeffs.shape[1]) * weights[:, None]
     azimuthal, polar = _ring_tables(np.arccos(t), phi, weighted.reshape(n, 2 * n, -1), int(lmax))
     return LightQuadrature(
         lmax=int(lmax),
@@ -248,16 +248,9 @@ def light_quadrature(envmap: np.ndarray, lmax: int, prefilter: float = 0.0, ligh
 def _ring_tables(theta: np.ndarray, phi: np.ndarray, weighted: np.ndarray, lmax: int) -> tuple[np.ndarray, np.ndarray]:
     """`LightQuadrature.azimuthal` and `.polar` of rings ``theta`` (n,), azimuths ``phi`` (2n,)
     and the weighted radiance on the grid (n, 2n, C)."""
-    m = np.arange(-lmax, lmax + 1)
-    mphi = np.abs(m)[None, :] * phi[:, None]  # (2n, M)
-    trig = np.where(m > 0, np.cos(mphi), np.where(m < 0, np.sin(mphi), 1.0))
+    polar, trig = ring_factors(theta, phi, lmax)  # (n, M, L), (2n, M)
     azimuthal = np.einsum("jkc,km->jkcm", weighted, trig).reshape(weighted.shape[0], weighted.shape[1], -1)
-    # Theta_lm = Y_l|m| at azimuth 0, where Phi_|m| = 1 (sh.py's convention)
-    y = real_sh(angles_to_directions(theta, np.zeros_like(theta)), lmax)  # (n, (lmax+1)^2)
-    polar = np.zeros((m.shape[0], theta.shape[0], lmax + 1))
-    for l in range(lmax + 1):
-        for mm in range(-l, l + 1):
-            polar[mm + lmax, :, l] = y[:, l * l + l + abs(mm)]
+    polar = polar.transpose(1, 0, 2)  # (M, n, L)
     return azimuthal.astype(np.float32), polar.astype(np.float32)
 
 
@@ -286,8 +279,7 @@ def shadowed_light(
     Returns
     -------
     numpy.ndarray
-        Shape ``(T, (lmax+1)**2, C)``, float32, world-frame coefficients
-        (a transposed view: texels are the fastest axis in memory).
+        Shape ``(T, (lmax+1)**2, C)``, float32, world-frame coefficients.
     """
     n = np.asarray(normals, dtype=np.float64)
     if n.ndim != 2 or n.shape[1] != 3:
@@ -330,19 +322,18 @@ def project_factors(
     Returns
     -------
     numpy.ndarray
-        Shape ``(n_columns, (lmax+1)**2, C)``, float32 (a transposed view: columns are
-        the fastest axis in memory).
+        Shape ``(n_columns, (lmax+1)**2, C)``, float32.
     """
     q = quadrature
     n_coef = q.basis.shape[1]
     n_ch = q.weighted_radiance.shape[1]
     n_orders = q.polar.shape[0]
     # products with the columns on the last axis: every operand is a (possibly transposed)
-    # matrix that BLAS takes as it is, so no intermediate is copied or transposed
+    # matrix that BLAS takes as it is; each block's result is reordered once, while in cache
     azimuthal = np.ascontiguousarray(q.azimuthal.transpose(0, 2, 1))  # (n, C*M, 2n)
     polar = np.ascontiguousarray(q.polar.transpose(0, 2, 1))  # (M, L, n)
     dirs = np.ascontiguousarray(q.directions.T, dtype=np.float32)
-    out = np.empty((n_ch, n_coef, n_columns), np.float32)
+    out = np.empty((n_columns, n_coef, n_ch), np.float32)
     block = max(multiple, _TEXEL_CHUNK - _TEXEL_CHUNK % multiple)
     g = np.empty((min(n_columns, block), dirs.shape[1]), np.float32)
     set_threads(workers)
@@ -353,10 +344,10 @@ def project_factors(
         # fewer operations than one product with every node's Y_lm
         rings = np.matmul(azimuthal, g[: b - a].reshape(b - a, q.n_rings, -1).transpose(1, 2, 0))  # (n, C*M, t)
         per_ring = rings.reshape(q.n_rings, n_ch, n_orders, b - a).transpose(1, 2, 0, 3)  # (C, M, n, t)
-        per_degree = np.matmul(polar, per_ring)  # (C, M, L, t)
+        per_degree = np.matmul(polar, per_ring).transpose(3, 1, 2, 0)  # (t, M, L, C)
         for l in range(q.lmax + 1):  # flat indices l^2 .. l^2 + 2l are the orders m = -l .. l
-            out[:, l * l : (l + 1) * (l + 1), a:b] = per_degree[:, q.lmax - l : q.lmax + l + 1, l]
-    return out.transpose(2, 1, 0)
+            out[a:b, l * l : (l + 1) * (l + 1)] = per_degree[:, q.lmax - l : q.lmax + l + 1, l]
+    return out
 
 
 def downsample_equirect(envmap: np.ndarray, height: int) -> np.ndarray:
@@ -436,15 +427,20 @@ def irradiance(
     small = downsample_equirect(rest.reshape(env.shape), min(source_height, h))
     hs, ws = small.shape[:2]
     small_power = (small * equirect_solid_angles(hs, ws)[:, None, None]).reshape(hs * ws, -1)
-    small_dirs = equirect_directions(hs, ws).reshape(-1, 3)
     grid = equirect_directions(grid_height, 2 * grid_height).reshape(-1, 3)
-    table = np.empty((grid.shape[0], env.shape[2]))
-    for a in range(0, grid.shape[0], 1024):
-        table[a : a + 1024] = np.maximum(grid[a : a + 1024] @ small_dirs.T, 0.0) @ small_power
+    table = _clamped_cosine_sums(grid, equirect_directions(hs, ws).reshape(-1, 3), small_power)
     out = sample_equirect(table.reshape(grid_height, 2 * grid_height, -1), n)
-    bright_dirs = equirect_directions(h, w).reshape(-1, 3)[top].T.astype(np.float32)
-    bright_power = power[top].astype(np.float32)
-    n32 = n.astype(np.float32)
-    for a in range(0, n.shape[0], 8192):
-        out[a : a + 8192] += np.maximum(n32[a : a + 8192] @ bright_dirs, 0.0) @ bright_power
+    return out + _clamped_cosine_sums(n, equirect_directions(h, w).reshape(-1, 3)[top], power[top])
+
+
+def _clamped_cosine_sums(normals: np.ndarray, directions: np.ndarray, power: np.ndarray) -> np.ndarray:
+    """``sum_p max(n . d_p, 0) power_p`` per normal (T, 3) over sources (P, 3) of power (P, C),
+    in float32 blocks of 1,024 normals whose cosines stay in cache."""
+    n32, dirs, p32 = normals.astype(np.float32), directions.T.astype(np.float32), power.astype(np.float32)
+    out = np.empty((n32.shape[0], p32.shape[1]))
+    cosines = np.empty((min(n32.shape[0], 1024), dirs.shape[1]), np.float32)
+    for a in range(0, n32.shape[0], 1024):
+        block = cosines[: min(n32.shape[0] - a, 1024)]
+        np.matmul(n32[a : a + 1024], dirs, out=block)
+        out[a : a + 1024] = np.maximum(block, 0.0, out=block) @ p32
     return out

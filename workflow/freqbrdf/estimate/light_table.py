@@ -193,5 +193,5 @@ def shadowed_light_table(quadrature: LightQuadrature, rows: int, rank: int, work
         basis_factors(grid[a // r : b // r], dirs, basis.u, out)
 
     lg = project_factors(quadrature, grid.shape[0] * r, factors, workers, multiple=r)
-    coefficients = np.ascontiguousarray(lg).reshape(grid.shape[0], r, *lg.shape[1:])
+    coefficients = lg.reshape(grid.shape[0], r, *lg.shape[1:])
     return ShadowedLightTable(basis=basis, rows=rows, coefficients=coefficients)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from scipy.special import roots_legendre
 
 from freqbrdf.sphere.brdf import ALPHA_MIN, smith_g1, tan2_theta
 from freqbrdf.util.validation import check_choice, check_shape
@@ -35,8 +36,9 @@ VIEW_NODES = (64, 64)  # nodes of `view_table`: log alpha over [log ALPHA_MIN, 0
 
 @functools.cache
 def _unit_interval_nodes(nodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Legendre nodes and weights on [0, 1] (numpy's eigenvalue solve takes 0.5 s at 2048: kept)."""
-    x, w = np.polynomial.legendre.leggauss(nodes)
+    """Gauss-Legendre nodes and weights on [0, 1] (kept: scipy's Newton iteration, 0.1 s at 2048
+    where numpy's eigenvalue solve takes 0.45 s)."""
+    x, w = roots_legendre(nodes)
     x, w = 0.5 * (x + 1.0), 0.5 * w
     x.flags.writeable = w.flags.writeable = False
     return x, w

@@ -57,6 +57,8 @@ from freqbrdf.util.validation import check_int, lmax_of
 
 __all__ = [
     "sh_index",
+    "ring_factors",
+    "eval_rings",
     "sh_degrees",
     "n_coeffs",
     "directions_to_angles",
@@ -367,7 +369,8 @@ def project_equirect(image: np.ndarray, lmax: int) -> np.ndarray:
 
     ``c_i = sum_pixels Y_i(d_p) f(d_p) dOmega_p`` with the pixel directions of
     `freqbrdf.sphere.sampling.equirect_directions` and weights of
-    `freqbrdf.sphere.sampling.equirect_solid_angles`.
+    `freqbrdf.sphere.sampling.equirect_solid_angles`, summed through `equirect_factors`
+    (over each row's columns per order, then over rows per degree): O(H W lmax).
 
     Parameters
     ----------
@@ -389,16 +392,15 @@ def project_equirect(image: np.ndarray, lmax: int) -> np.ndarray:
     height, width = img.shape[:2]
     if height < 2 or width < 1:
         raise ValueError(f"image must have H >= 2 and W >= 1, got shape {img.shape}")
-    w = equirect_solid_angles(height, width)
-    weighted = (img * (w[:, None] if img.ndim == 2 else w[:, None, None])).reshape(
-        (height * width,) + img.shape[2:]
-    )
-    d_flat = equirect_directions(height, width).reshape(-1, 3)
-    k = (lmax + 1) ** 2
-    acc = np.zeros((k,) + img.shape[2:])
-    for start, stop, y_blk in _sh_blocks(d_flat, lmax):
-        acc += y_blk @ weighted[start:stop]
-    return acc
+    polar, azimuthal = equirect_factors(height, width, lmax)
+    channels = img.reshape(height, width, -1)
+    per_order = channels.transpose(0, 2, 1) @ azimuthal  # (H, C, M): sum over each row (O(H W lmax))
+    weighted = polar * equirect_solid_angles(height, width)[:, None, None]
+    by_order = np.einsum("hml,hcm->mlc", weighted, per_order)  # (M, L + 1, C), 0 where l < |m|
+    acc = np.empty(((lmax + 1) ** 2, channels.shape[2]))
+    for l in range(lmax + 1):  # flat indices l^2 .. l^2 + 2l are the orders m = -l .. l
+        acc[l * l : (l + 1) * (l + 1)] = by_order[lmax - l : lmax + l + 1, l]
+    return acc if img.ndim == 3 else acc[:, 0]
 
 
 def equirect_factors(height: int, width: int, lmax: int) -> tuple[np.ndarray, np.ndarray]:
@@ -425,18 +427,68 @@ def equirect_factors(height: int, width: int, lmax: int) -> tuple[np.ndarray, np
         and ``sin(|m| phi_j)`` for ``m < 0`` (the sign convention of `real_sh`).
     """
     height, width = check_grid(height, width)
-    lmax = check_int(lmax, "lmax", 0)
     ct, st = row_cos_sin(height)
+    return ring_factors(np.arctan2(st, ct), 2.0 * np.pi * (np.arange(width) + 0.5) / width, lmax)
+
+
+def ring_factors(theta: np.ndarray, phi: np.ndarray, lmax: int) -> tuple[np.ndarray, np.ndarray]:
+    """The real SH on a grid of rings (polar angles x azimuths) as a polar times an azimuthal factor.
+
+    ``Y_lm(theta_i, phi_j) = polar[i, m + lmax, l] * azimuthal[j, m + lmax]`` (`equirect_factors`
+    on any rings).
+
+    Parameters
+    ----------
+    theta : numpy.ndarray
+        Shape ``(n,)``, polar angles of the rings, radians.
+    phi : numpy.ndarray
+        Shape ``(k,)``, azimuths shared by every ring, radians.
+    lmax : int
+        Maximum degree, ``>= 0``.
+
+    Returns
+    -------
+    polar : numpy.ndarray
+        Shape ``(n, 2 lmax + 1, lmax + 1)``: ``Y_l|m|`` at azimuth 0, 0 where ``l < |m|``.
+    azimuthal : numpy.ndarray
+        Shape ``(k, 2 lmax + 1)``: ``cos(m phi)``, 1 or ``sin(|m| phi)``.
+    """
+    lmax = check_int(lmax, "lmax", 0)
+    theta = np.asarray(theta, dtype=np.float64)
     # azimuth 0 is the direction (0, cos theta, -sin theta)
-    y = real_sh(np.stack([np.zeros(height), ct, -st], axis=-1), lmax)  # (H, n_coeffs)
+    y = real_sh(np.stack([np.zeros_like(theta), np.cos(theta), -np.sin(theta)], axis=-1), lmax)  # (n, n_coeffs)
     m = np.arange(-lmax, lmax + 1)
-    polar = np.zeros((height, m.size, lmax + 1))
+    polar = np.zeros((theta.shape[0], m.size, lmax + 1))
     for l in range(lmax + 1):
         polar[:, m[lmax - l : lmax + l + 1] + lmax, l] = y[:, l * l + l + np.abs(m[lmax - l : lmax + l + 1])]
-    phi = 2.0 * np.pi * (np.arange(width) + 0.5) / width
-    mphi = np.abs(m)[None, :] * phi[:, None]
+    mphi = np.abs(m)[None, :] * np.asarray(phi, dtype=np.float64)[:, None]
     azimuthal = np.where(m > 0, np.cos(mphi), np.where(m < 0, np.sin(mphi), 1.0))
     return polar, azimuthal
+
+
+def eval_rings(coeffs: np.ndarray, theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """An SH expansion evaluated on a grid of rings, through `ring_factors`: O(n k lmax + n lmax^2).
+
+    Parameters
+    ----------
+    coeffs : numpy.ndarray
+        Shape ``((lmax + 1)**2, C)``.
+    theta, phi : numpy.ndarray
+        Shapes ``(n,)`` and ``(k,)``: the rings' polar angles and their azimuths, radians.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(n, k, C)``, float64: ``eval_sh`` at ``angles_to_directions(theta_i, phi_j)``.
+    """
+    c = np.asarray(coeffs, dtype=np.float64)
+    lmax = lmax_of(c.shape[0], "coeffs")
+    polar, azimuthal = ring_factors(theta, phi, lmax)
+    by_order = np.zeros((2 * lmax + 1, lmax + 1, c.shape[1]))
+    for l in range(lmax + 1):
+        by_order[lmax - l : lmax + l + 1, l] = c[l * l : (l + 1) * (l + 1)]
+    rows = np.einsum("hml,mlc->hcm", polar, by_order)  # (n, C, M)
+    return (rows @ azimuthal.T).transpose(0, 2, 1)
 
 
 def filter_equirect(image: np.ndarray, gains: np.ndarray) -> np.ndarray:

@@ -126,7 +126,7 @@ def degree_sums(
     ----------
     lg : numpy.ndarray
         Shape ``(S, (lmax+1)**2, C)``, float32 or float64, any strides: SH
-        expansions (`freqbrdf.estimate.light.shadowed_light` returns a transposed view).
+        expansions (`freqbrdf.estimate.light.shadowed_light`).
     rows : numpy.ndarray
         Shape ``(P,)``, int64: expansion of each evaluated pair.
     pairs : numpy.ndarray
