@@ -44,6 +44,8 @@ SETTINGS = {
     "50 steps": {"iterations": 50, "refit_every": 17},
     "50 steps, lr 0.1": {"iterations": 50, "refit_every": 17, "lr": 0.1},
     "30 steps, lr 0.1": {"iterations": 30, "refit_every": 10, "lr": 0.1},
+    "lm": {"solver": "lm"},
+    "lm, 24 sweeps": {"solver": "lm", "sweeps": 24, "sweep_refit_every": 6},
 }
 
 
