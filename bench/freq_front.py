@@ -35,7 +35,7 @@ SETTINGS = {
     "default": {},
     "table off": {"light_table": {"rows": 0}},
     "table 32 rows": {"light_table": {"rows": 32}},
-    "table 48 rows": {"light_table": {"rows": 48}},
+    "table 64 rows": {"light_table": {"rows": 64}},
     "table 96 rows": {"light_table": {"rows": 96}},
     "table rank 6": {"light_table": {"rank": 6}},
     "100 steps": {"iterations": 100, "refit_every": 34},
