@@ -299,6 +299,11 @@ def test_metrics_csv_has_every_row(repo, run):
         frequency = sorted(m for m in methods if METHODS[m].rule in FREQUENCY_RULES)
         equal = table[table.metric == "speed_ratio_equal_accuracy"]
         assert sorted(equal.method) == frequency and set(equal.object) == {"sphere"} and (equal.value >= 0).all()
+        # at Mitsuba's accuracy: a ratio exactly for the methods at least as accurate as Mitsuba's final MSE
+        at = table[table.metric == "speed_ratio_at_mitsuba_accuracy"].set_index("method").value
+        mse = table[(table.object == "sphere") & (table.metric == "mse_average")].set_index("method").value
+        assert sorted(at.index) == frequency
+        assert all((at[m] > 0) == (mse[m] <= mse["mitsuba"]) for m in frequency)
 
 
 def test_relit_images_cover_every_test_view(run):
@@ -713,7 +718,7 @@ def test_a_wrongly_oriented_map_is_reported_with_the_best_rotation(repo, orb):
 
 
 TIMING_METRICS = ("time_s", "time_total_s", "max_rss_mb", "speed_ratio_vs_mitsuba", "speed_ratio_equal_accuracy",
-                  "mitsuba_time_to_match_s", "mitsuba_reached", "entropy_agreement_time_mitsuba_s",
+                  "speed_ratio_at_mitsuba_accuracy", "mitsuba_time_to_converge_s", "mitsuba_time_to_match_s", "mitsuba_reached", "entropy_agreement_time_mitsuba_s",
                   "entropy_agreement_time_angular_s", "entropy_agreement_time_spectrum_s")
 
 

@@ -302,6 +302,27 @@ def test_speed_is_judged_on_lower_bounds_when_mitsuba_never_reaches_freqs_mse():
         "Ours (freq) fits much faster than Mitsuba"]
 
 
+def test_speed_is_judged_at_mitsubas_converged_accuracy_by_the_fastest_method_that_reaches_it():
+    """The front's ratio: per capture the largest speed_ratio_at_mitsuba_accuracy over the methods
+    (NaN: less accurate than Mitsuba); judged only when Mitsuba converged."""
+    claim = "Ours (freq) fits much faster than Mitsuba"
+    df = full_run({("freq", "speed_ratio_at_mitsuba_accuracy"): float("nan"),
+                   ("rh2001", "speed_ratio_at_mitsuba_accuracy"): 30.0,
+                   ("freq+mitsuba", "speed_ratio_at_mitsuba_accuracy"): 36.0,
+                   ("mitsuba", "mitsuba_time_to_converge_s"): 90.0})
+    table = claims(df, PAPER)
+    ours = dict(zip(table.claim, table.ours))[claim]
+    assert dict(zip(table.claim, table.holds))[claim] == "yes"  # 36x >= 33.5x, though freq's own is NaN
+    assert ours.startswith("36.0") and "at Mitsuba's converged MSE" in ours and "at freq's MSE 40.0" in ours
+    front = df.metric == "speed_ratio_at_mitsuba_accuracy"
+    df.loc[front, "value"] = float("nan")
+    df.loc[front & (df.object == "sphere") & (df.method == "freq"), "value"] = 30.0
+    df.loc[front & (df.object == "torus") & (df.method == "rh2001"), "value"] = 20.0
+    assert verdicts(df)[claim] == "no"  # 30x and 20x < 33.5x, the 40x at freq's MSE notwithstanding
+    df.loc[(df.object == "torus") & (df.metric == "mitsuba_converged"), "value"] = 0.0
+    assert verdicts(df)[claim] == "not judged"
+
+
 def test_real_captures_are_judged_against_the_stanford_orb_speed_up():
     df = pd.concat([full_run(), tidy([("pot", "pot", "freq", "speed_ratio_vs_mitsuba", 10.0),
                                       ("pot", "pot", "mitsuba", "time_total_s", 50.0)])])

@@ -52,7 +52,7 @@ from typing import Iterator
 
 import numpy as np
 
-from freqbrdf.sphere.sampling import check_grid, equirect_directions, equirect_solid_angles, row_cos_sin
+from freqbrdf.sphere.sampling import check_grid, equirect_solid_angles, row_cos_sin
 from freqbrdf.util.validation import check_int, lmax_of
 
 __all__ = [

@@ -165,15 +165,13 @@ def shadowing_factors(normals: np.ndarray, directions: np.ndarray, alpha: np.nda
 def basis_factors(normals: np.ndarray, directions: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
     """The shadowing basis functions ``u_k(n . w)`` of every normal and direction, 0 below the horizon.
 
-    The separable form of `shadowing_factors` (`freqbrdf.estimate.light.ShadowingBasis`):
+    The separable form of `shadowing_factors` (`freqbrdf.estimate.light_table.ShadowingBasis`):
     ``u_k`` is tabulated at ``P`` even steps of ``cos theta`` in [0, 1] and interpolated linearly.
 
     Parameters
     ----------
-    normals : numpy.ndarray
-        Shape ``(T, 3)``, float32, unit.
-    directions : numpy.ndarray
-        Shape ``(3, Q)``, float32, unit (one direction per column).
+    normals, directions : numpy.ndarray
+        As `shadowing_factors`.
     u : numpy.ndarray
         Shape ``(R, P)``, float32: the basis functions' samples.
     out : numpy.ndarray

@@ -25,7 +25,10 @@ with an empty ``view``). Metric names:
 - ``mitsuba_time_to_match_s``, ``mitsuba_reached``, ``speed_ratio_equal_accuracy``:
   for the methods that need the observations, Mitsuba's time to reach their MSE
   and its ratio to their time from the capture (a lower bound when not reached);
-  ``mitsuba_last_epoch_change``, ``mitsuba_converged``: whether the baseline converged.
+  ``speed_ratio_at_mitsuba_accuracy``: Mitsuba's time to its own converged MSE over
+  theirs, for those at least as accurate (NaN for the others);
+  ``mitsuba_last_epoch_change``, ``mitsuba_converged``, ``mitsuba_time_to_converge_s``:
+  whether the baseline converged, and when.
 """
 
 from __future__ import annotations
