@@ -225,7 +225,7 @@ def test_metrics_csv_has_every_row(repo, run):
     import pandas as pd
 
     methods = tiny_methods(repo)
-    table = pd.read_csv(run / "results/tables/metrics.csv", keep_default_na=False)
+    table = pd.read_csv(run / "results/tables/metrics.csv", keep_default_na=False, na_values={"value": [""]})
     assert list(table.columns) == ["object", "env", "poses", "method", "relight_env", "view", "metric", "value"]
     table["value"] = table.value.astype(float)
     synthetic = table[table.object == "sphere"]

@@ -69,25 +69,29 @@ def _real_sh_point(x, y, z, lmax, a, b, out):  # pragma: no cover - compiled
                 q1 = q
 
 
+@numba.njit(cache=True, inline="always")
+def _mirror_sums(lg, d, a, b, y, out, p):  # pragma: no cover - compiled
+    """``out[p, l, c] = sum_m lg[lm, c] Y_lm(d)`` per degree, RGB (``y``: scratch): three running
+    sums, one pass over each degree's coefficients."""
+    lmax = out.shape[1] - 1
+    norm = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    _real_sh_point(d[0] / norm, d[1] / norm, d[2] / norm, lmax, a, b, y)
+    for l in range(lmax + 1):
+        r_sum, g_sum, b_sum = 0.0, 0.0, 0.0
+        for k in range(l * l, (l + 1) * (l + 1)):
+            r_sum += lg[k, 0] * y[k]
+            g_sum += lg[k, 1] * y[k]
+            b_sum += lg[k, 2] * y[k]
+        out[p, l, 0], out[p, l, 1], out[p, l, 2] = r_sum, g_sum, b_sum
+
+
 @numba.njit(parallel=True, cache=True)
 def degree_sums_kernel(lg, rows, pairs, mirror, a, b, out):  # pragma: no cover - compiled
-    lmax = out.shape[1] - 1
-    n_ch = out.shape[2]
     n = pairs.shape[0]
     for blk in numba.prange((n + _BLOCK - 1) // _BLOCK):
-        y = np.empty((lmax + 1) * (lmax + 1))
+        y = np.empty(out.shape[1] * out.shape[1])
         for i in range(blk * _BLOCK, min(n, (blk + 1) * _BLOCK)):
-            p = pairs[i]
-            d = mirror[p]
-            norm = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-            _real_sh_point(d[0] / norm, d[1] / norm, d[2] / norm, lmax, a, b, y)
-            r = rows[i]
-            for l in range(lmax + 1):
-                for c in range(n_ch):
-                    acc = 0.0
-                    for k in range(l * l, (l + 1) * (l + 1)):
-                        acc += lg[r, k, c] * y[k]
-                    out[p, l, c] = acc
+            _mirror_sums(lg[rows[i]], mirror[pairs[i]], a, b, y, out, pairs[i])
 
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
@@ -126,11 +130,10 @@ def basis_factors_kernel(normals, directions, u, out):  # pragma: no cover - com
 @numba.njit(parallel=True, cache=True)
 def table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirror, a, b, out):  # pragma: no cover
     rank, size = coefficients.shape[1], coefficients.shape[2]  # size: (lmax + 1)^2 x 3, coefficient-major
-    lmax = out.shape[1] - 1
     n = slots.shape[0]
     for blk in numba.prange((n + _TEXELS - 1) // _TEXELS):
         lg = np.empty(size, np.float32)
-        y = np.empty((lmax + 1) * (lmax + 1))
+        y = np.empty(out.shape[1] * out.shape[1])
         for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
             lg[:] = 0.0
             for j in range(corner.shape[1]):
@@ -140,23 +143,8 @@ def table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirr
                         row = coefficients[corner[i, j], r]
                         for q in range(size):
                             lg[q] += w * row[q]
-            s = slots[i]
-            for p in range(start[s], start[s + 1]):
-                d = mirror[p]
-                norm = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-                _real_sh_point(d[0] / norm, d[1] / norm, d[2] / norm, lmax, a, b, y)
-                for l in range(lmax + 1):  # RGB: three running sums, one pass over the degree's coefficients
-                    r_sum = 0.0
-                    g_sum = 0.0
-                    b_sum = 0.0
-                    for k in range(l * l, (l + 1) * (l + 1)):
-                        yk = y[k]
-                        r_sum += lg[3 * k] * yk
-                        g_sum += lg[3 * k + 1] * yk
-                        b_sum += lg[3 * k + 2] * yk
-                    out[p, l, 0] = r_sum
-                    out[p, l, 1] = g_sum
-                    out[p, l, 2] = b_sum
+            for p in range(start[slots[i]], start[slots[i] + 1]):
+                _mirror_sums(lg.reshape(y.shape[0], 3), mirror[p], a, b, y, out, p)
 
 
 @numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples

@@ -125,7 +125,7 @@ def degree_sums(
     Parameters
     ----------
     lg : numpy.ndarray
-        Shape ``(S, (lmax+1)**2, C)``, float32 or float64, any strides: SH
+        Shape ``(S, (lmax+1)**2, 3)``, float32 or float64, any strides: SH
         expansions (`freqbrdf.estimate.light.shadowed_light`).
     rows : numpy.ndarray
         Shape ``(P,)``, int64: expansion of each evaluated pair.
@@ -136,8 +136,10 @@ def degree_sums(
     a, b : numpy.ndarray
         Shape ``(lmax+1, lmax+1)``: `freqbrdf.sphere.sh.recurrence_tables` of lmax.
     out : numpy.ndarray
-        Shape ``(N, lmax+1, C)``, written in place at ``pairs``.
+        Shape ``(N, lmax+1, 3)``, written in place at ``pairs``.
     """
+    if out.shape[2] != 3 or lg.shape[2] != 3:
+        raise ValueError(f"degree_sums needs RGB expansions, got lg {lg.shape} and out {out.shape}")
     compiled.degree_sums_kernel(lg, rows, pairs, mirror, a, b, out)
 
 
