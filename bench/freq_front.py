@@ -68,7 +68,8 @@ def run_job(capture: str, label: str, results: Path) -> dict:
     obs = read_observations(layout.located(layout.OBSERVATIONS, results, object=obj, env=env, poses="gt"))
     envmap = read_exr(layout.located(layout.ENVMAP, results, env=env))
     start = time.perf_counter()
-    params, curve = estimate_capture(obs, envmap, "freq", config, 2)
+    fit = estimate_capture(obs, envmap, "freq", config, 2)
+    params, curve = fit.params, fit.loss_curve
     estimated = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         write_svbrdf(Path(tmp), Svbrdf.from_texels(obs.texels.resolution, obs.texels.texel, params, obs.observed))

@@ -91,8 +91,8 @@ def main() -> None:
             print(ratios[-1], flush=True)
             settings = OptimiseSettings.paper(iterations=300, lr=0.01, tv_weight=0.0, lobe=lobe,
                                               view_weight=view_weight, diffuse=diffuse)
-            est, _ = optimise(capture_observations(capture), lt.irradiance(env, capture["frame"][:, 2]),
-                              lt.light_quadrature(env, 20), None, "freq", settings=settings)
+            est = optimise(capture_observations(capture), lt.irradiance(env, capture["frame"][:, 2]),
+                           lt.light_quadrature(env, 20), None, "freq", settings=settings).params
             for r in ROUGHNESS:
                 for metallic in (0.0, 1.0):
                     sel = (truth["roughness"] == r) & (truth["metallic"] == metallic)

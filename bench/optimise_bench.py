@@ -177,7 +177,8 @@ def optimise_capture(data: dict, method: str, init: dict | None, lmax: int = LMA
     from freqbrdf.estimate.optimise.solve import optimise
 
     light = model_light(data["envmap"], data["obs"], method, lmax, point_sources)
-    return optimise(data["obs"], data["irradiance"], light, init, method, settings=OptimiseSettings.paper(**settings))
+    fit = optimise(data["obs"], data["irradiance"], light, init, method, settings=OptimiseSettings.paper(**settings))
+    return fit.params, fit.loss_curve
 
 
 def run_timing(name: str) -> dict:

@@ -119,10 +119,10 @@ def test_recovers_the_paper_model_above_the_band_limit(name: str, request) -> No
     env = request.getfixturevalue("sunny_env") if name == "sunny" else ENVS[name]()
     env = lt.downsample_equirect(env, 128)  # a 1.4-degree grid keeps the per-texel oracle quick
     capture, truth = oracle_capture(env, seed=0)
-    est, _ = optimise(
+    est = optimise(
         capture_observations(capture), lt.irradiance(env, capture["frame"][:, 2]), lt.light_quadrature(env, 20), None,
         "freq", settings=OptimiseSettings.paper(iterations=300, lr=0.01, tv_weight=0.0),
-    )
+    ).params
     for r, tolerance in zip(ROUGHNESS, (0.05, 0.03, 0.03, 0.03)):
         sel = truth["roughness"] == r
         err = np.abs(est["roughness"][sel] - r)
@@ -145,7 +145,7 @@ def test_the_papers_prefiltered_light_biases_roughness_low() -> None:
     settings = OptimiseSettings.paper(iterations=300, lr=0.01, tv_weight=0.0)
     args = (capture_observations(capture), lt.irradiance(env, capture["frame"][:, 2]))
     sel = truth["roughness"] == 0.7
-    paper, _ = optimise(*args, lt.light_quadrature(env, 16, prefilter=24**-0.5), None, "freq", settings=settings)
-    ours, _ = optimise(*args, lt.light_quadrature(env, 16), None, "freq", settings=settings)
+    paper = optimise(*args, lt.light_quadrature(env, 16, prefilter=24**-0.5), None, "freq", settings=settings).params
+    ours = optimise(*args, lt.light_quadrature(env, 16), None, "freq", settings=settings).params
     assert np.median(0.7 - paper["roughness"][sel]) > 0.03
     assert np.abs(ours["roughness"][sel] - 0.7).max() < 0.03

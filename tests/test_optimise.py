@@ -134,8 +134,9 @@ def render(scene: dict, params: dict, method: str, model: tuple[str, str, str] =
 def run(
     scene: dict, radiance: np.ndarray, method: str, init: dict | None = None, **settings: object
 ) -> tuple[dict, np.ndarray]:
-    return optimise(observations(scene, radiance), scene["irradiance"], scene["light"], init, method,
-                    settings=OptimiseSettings.paper(**settings))
+    fit = optimise(observations(scene, radiance), scene["irradiance"], scene["light"], init, method,
+                   settings=OptimiseSettings.paper(**settings))
+    return fit.params, fit.loss_curve
 
 
 @pytest.fixture(scope="module")
@@ -378,7 +379,7 @@ def test_threads_do_not_change_results() -> None:
                       settings=OptimiseSettings.paper(solver="lm", sweeps=4, sweep_refit_every=2, workers=w))
           for w in (1, 2)]
     for k in TEXTURES:
-        np.testing.assert_array_equal(lm[0][0][k], lm[1][0][k])
+        np.testing.assert_array_equal(lm[0].params[k], lm[1].params[k])
 
 
 # --------------------------------------------------------------------------
@@ -694,7 +695,8 @@ for solver, steps in (("adam", {"iterations": 20}), ("lm", {"sweeps": 3})):
     for method in methods_of("optimise_svbrdf"):
         light, e = estimate_light(env, obs, method, 10, config["point_sources"])
         settings = OptimiseSettings.from_config(config | {"solver": solver, "lmax": 10} | steps, workers=2)
-        params, curve = optimise(obs, e, light, method=method, settings=settings)
+        fit = optimise(obs, e, light, method=method, settings=settings)
+        params, curve = fit.params, fit.loss_curve
         data = b"".join(np.ascontiguousarray(params[k]).tobytes() for k in sorted(params)) + curve.tobytes()
         out[f"{method}/{solver}"] = hashlib.sha1(data).hexdigest()
 print(json.dumps(out))

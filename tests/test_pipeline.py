@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 
+from freqbrdf.artefacts import read_posterior_std
 from freqbrdf.config import merge_config
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
 from freqbrdf.scene.cameras import cameras_from_json, project
@@ -194,6 +195,12 @@ def test_every_method_writes_loadable_textures_and_a_decreasing_loss(run):
         # is its lowest-loss iterate (tests/test_optimise.py, as the descent from 0.5).
         assert len(loss) == 151 and np.isfinite(loss).all()  # the start of every step, then the end
         assert loss.max() > 3 * loss[-1] and loss[-1] < 1.5 * loss[0]
+        # each parameter's posterior standard deviation: positive where some view observes the texel,
+        # NaN elsewhere, and never wider than the prior's scaled by the calibration
+        std = read_posterior_std(estimate)
+        seen = np.isfinite(std["roughness"])
+        assert seen.any() and not seen.all()
+        assert all(np.isfinite(std[g][seen]).all() and (std[g][seen] > 0).all() for g in std)
 
 
 def test_mitsuba_methods_write_textures_and_one_loss_per_step(repo, run):

@@ -171,7 +171,7 @@ def test_point_sources_recover_the_metals_that_the_sun_through_the_sh_does_not()
     errors = {}
     for name, sources in (("sh", None), ("point", {"max_radius_deg": 3.0, "min_radiance": 20.0})):
         light, e = estimate_light(env, obs, "freq", 20, sources)
-        est, _ = optimise(obs, e, light, None, "freq", settings=settings)
+        est = optimise(obs, e, light, None, "freq", settings=settings).params
         errors[name] = {g: np.abs(est[g] - truth[g])[metal].mean() for g in ("roughness", "metallic")}
     assert errors["point"]["metallic"] < 0.5 * errors["sh"]["metallic"]
     assert errors["point"]["roughness"] < 0.75 * errors["sh"]["roughness"]

@@ -387,6 +387,28 @@ def read_svbrdf(source: str | os.PathLike | Mapping[str, str | os.PathLike]) -> 
     return Svbrdf(**textures)
 
 
+def write_posterior_std(directory: str | os.PathLike, resolution: int, texel: np.ndarray,
+                        std: Mapping[str, np.ndarray]) -> None:
+    """``std_{name}.exr`` of every texture in `TEXTURES`: each parameter's posterior standard
+    deviation (`freqbrdf.estimate.optimise.solve.Fit.std`) at the texels ``texel`` (T,) of a
+    ``resolution``-texel atlas, NaN elsewhere and where ``std`` is NaN (no observations)."""
+    n = check_int(resolution, "resolution", 1) ** 2
+    for name in TEXTURES:
+        values = np.asarray(std[name], dtype=np.float32)
+        atlas = np.full((n,) + values.shape[1:], np.nan, np.float32)
+        atlas[texel] = values
+        write_exr(Path(directory) / f"std_{name}.exr", atlas.reshape((resolution, resolution) + values.shape[1:]))
+
+
+def read_posterior_std(directory: str | os.PathLike) -> dict[str, np.ndarray]:
+    """The atlases `write_posterior_std` wrote: ``base_color`` (R, R, 3), the others (R, R)."""
+    out = {}
+    for name in TEXTURES:
+        atlas = read_exr(Path(directory) / f"std_{name}.exr")
+        out[name] = atlas[..., 0] if name != "base_color" and atlas.ndim == 3 else atlas
+    return out
+
+
 # --------------------------------------------------------------------------
 # entropy
 # --------------------------------------------------------------------------

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
+from freqbrdf.artefacts import read_entropy, read_observations, read_posterior_std, read_svbrdf
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
@@ -19,7 +19,9 @@ from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
 from freqbrdf.report.metrics import (base_color_si_scores, brdf_log_error, is_converged, last_epoch_change,
                                      parameter_error_map, parameter_mse, pearson, time_to_reach)
-from freqbrdf.report.sparsification import baseline_maps, partial_pearson, sparsification_curves, uncertainty_scores
+from freqbrdf.estimate.optimise.posterior import expected_error
+from freqbrdf.report.sparsification import (baseline_maps, interval_coverage, partial_pearson, sparsification_curves,
+                                             uncertainty_scores)
 from freqbrdf.report.tables.tidy import TIDY_COLUMNS
 from freqbrdf.report.relight_metrics import RELIGHT_METRICS, HdrScoring, relight_view_scores, scored_pixels
 
@@ -68,11 +70,30 @@ def parameter_rows(smk):
             rows.append(key | dict(metric="pearson_entropy_error", value=pearson(entropy, error)))
             rows.append(key | dict(metric="partial_pearson_entropy_error_views", value=partial_pearson(entropy, error, views)))
             maps = {"entropy": entropy, **baselines((obj, env, poses))}
+            if METHODS[method].rule == "optimise_svbrdf":  # its fit's posterior (read_posterior_std)
+                posterior, coverage = posterior_rows(directory, truth(obj), estimate, texels)
+                maps["posterior"] = posterior
+                rows.append(key | dict(metric="partial_pearson_posterior_error_views",
+                                       value=partial_pearson(posterior, error, views)))
+                rows += [key | dict(metric=f"coverage90_{name}", value=value) for name, value in coverage.items()]
             errors = {"parameter": error, "brdf": brdf_error}
             rows += [key | dict(metric=name, value=value) for name, value in uncertainty_scores(maps, errors).items()]
             curves += [dict(object=obj, env=env, poses=poses, method=method) | record
                        for record in sparsification_curves(maps, errors)]
     return rows, curves
+
+
+def posterior_rows(directory, truth, estimate, texels):
+    """The expected squared parameter error of each scored texel under its fit's posterior, and
+    the coverage of the 90% intervals per texture and over all (``all``)."""
+    n = np.asarray(estimate["roughness"]).size
+    at = lambda atlas: np.asarray(atlas, dtype=np.float64).reshape(n, -1)[texels]  # noqa: E731 (T, channels)
+    std = {g: at(a) for g, a in read_posterior_std(directory).items()}
+    coverage = {g: interval_coverage(at(estimate[g]), at(truth[g]), std[g]) for g in TEXTURES}
+    stacked = [np.column_stack([f(g) for g in TEXTURES]) for f in (lambda g: at(estimate[g]), lambda g: at(truth[g]),
+                                                                     lambda g: std[g])]
+    coverage["all"] = interval_coverage(*stacked)
+    return expected_error(stacked[2] ** 2), coverage
 
 
 def reference_views(test, min_coverage):

@@ -1,10 +1,11 @@
 """Rule optimise_svbrdf: per-texel base colour, roughness and metallic by gradient descent
-through the frequency-domain forward model (its methods: freqbrdf.methods.methods_of("optimise_svbrdf"))."""
+through the frequency-domain forward model (its methods: freqbrdf.methods.methods_of("optimise_svbrdf")),
+with each parameter's posterior standard deviation."""
 
 import numpy as np
 import pandas as pd
 
-from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf, write_svbrdf
+from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf, write_posterior_std, write_svbrdf
 from freqbrdf.estimate.optimise.solve import estimate_capture
 from freqbrdf.util.io import atomic_directory, atomic_path, read_exr
 from freqbrdf.util.logs import run_script
@@ -14,12 +15,14 @@ def main(smk, log):
     obs = read_observations(smk.input.observations)
     texels = obs.texels
     init = read_svbrdf(smk.input.init).at_texels(texels.texel) if "init" in smk.input.keys() else None
-    params, curve = estimate_capture(obs, read_exr(smk.input.envmap), smk.wildcards.method, smk.params.optimise,
-                                     smk.threads, init, log)
+    fit = estimate_capture(obs, read_exr(smk.input.envmap), smk.wildcards.method, smk.params.optimise, smk.threads,
+                           init, log)
     with atomic_directory(smk.output.estimate) as tmp:
-        write_svbrdf(tmp, Svbrdf.from_texels(texels.resolution, texels.texel, params, obs.observed))
+        write_svbrdf(tmp, Svbrdf.from_texels(texels.resolution, texels.texel, fit.params, obs.observed))
+        write_posterior_std(tmp, texels.resolution, texels.texel, fit.std)
         with atomic_path(tmp / "loss.tsv") as f:
-            pd.DataFrame({"iteration": np.arange(len(curve)), "loss": curve}).to_csv(f, sep="\t", index=False)
+            pd.DataFrame({"iteration": np.arange(len(fit.loss_curve)), "loss": fit.loss_curve}).to_csv(
+                f, sep="\t", index=False)
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)

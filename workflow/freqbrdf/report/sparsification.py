@@ -164,3 +164,21 @@ def _checked(uncertainty: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np
     if e.min() < 0 or not e.mean() > 0:
         raise ValueError(f"error must be >= 0 with a positive mean, got min {e.min():g}, mean {e.mean():g}")
     return u, e
+
+
+def interval_coverage(estimate: np.ndarray, truth: np.ndarray, std: np.ndarray, z: float = 1.645) -> float:
+    """Fraction of the values whose truth lies within ``z`` posterior standard deviations of the
+    estimate (``z`` 1.645: the central 90% interval of a Gaussian), over every element given.
+
+    Parameters
+    ----------
+    estimate, truth, std : numpy.ndarray
+        The same shape: estimated values, true values, standard deviations (> 0).
+    z : float
+        Half-width of the interval in standard deviations.
+    """
+    estimate, truth, std = (np.asarray(a, dtype=np.float64) for a in (estimate, truth, std))
+    if not (estimate.shape == truth.shape == std.shape) or estimate.size == 0:
+        raise ValueError(f"interval_coverage: shapes {estimate.shape}, {truth.shape}, {std.shape} must agree and be non-empty")
+    return float(np.mean(np.abs(estimate - truth) <= z * std))
+

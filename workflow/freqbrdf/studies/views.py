@@ -127,5 +127,5 @@ def estimate_subset(obs: Observations, views: np.ndarray, envmap: np.ndarray, ba
     """
     sub = view_subset(obs, views, envmap, band_limit)
     search = search_fit(fit_observations(sub, sh, workers), sub.observed, spectrum, workers)
-    estimate, _ = optimise(sub, irradiance, light, method="freq", settings=settings)
+    estimate = optimise(sub, irradiance, light, method="freq", settings=settings).params
     return sub, search, estimate

@@ -364,6 +364,12 @@ class ForwardModel:
         """`refit_light` of the observed texels ``slots`` into ``terms``."""
         refit_light(terms, roughness, self.problem, self.light, slots, workers, self.table)
 
+    def radiance(self, xp: np.ndarray, terms: np.ndarray) -> np.ndarray:
+        """Model radiance (N, 3) of every observed pair at internal-order parameters ``xp`` (T, 5)."""
+        out = np.empty((self.problem.n_pairs, 3))
+        _data_term(xp, self.problem, terms, self.kernel, out)
+        return out
+
     def objective(self, xp: np.ndarray, terms: np.ndarray, tv_weight: float) -> tuple[float, np.ndarray]:
         """`loss_and_gradient` of internal-order parameters ``xp`` (T, 5), unchecked: the solvers' inner loop."""
         return _objective(xp, self.problem, terms, self.kernel, tv_weight)

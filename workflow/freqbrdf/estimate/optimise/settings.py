@@ -76,6 +76,8 @@ class OptimiseSettings:
         Lower bound of the fitted roughness, in [0, 1), e.g.
         `identifiable_roughness` of the light's degree: below it the model
         does not resolve the lobe (docs/method.md, "Identifiable roughness").
+    variance_scale : float
+        Calibration of the posterior's variances (`freqbrdf.estimate.optimise.posterior`), > 0.
     light_table : TableSize
         The shadowed light from one table per environment
         (`freqbrdf.estimate.light_table.ShadowedLightTable`), or with ``rows`` 0
@@ -119,6 +121,7 @@ class OptimiseSettings:
     tv_weight: float
     min_roughness: float
     light_table: TableSize
+    variance_scale: float
     sweep_tolerance: float = 1e-4
     irls_floor: float = 1e-2
     tv_floor: float = 1e-2
@@ -156,6 +159,8 @@ class OptimiseSettings:
             raise ValueError(f"refit_tolerance must be a finite number >= 0, got {self.refit_tolerance!r}")
         if not (np.isfinite(self.tv_weight) and self.tv_weight >= 0):
             raise ValueError(f"tv_weight must be a finite number >= 0, got {self.tv_weight!r}")
+        if not (np.isfinite(self.variance_scale) and self.variance_scale > 0):
+            raise ValueError(f"variance_scale must be a finite number > 0, got {self.variance_scale!r}")
         if not isinstance(self.light_table, TableSize):
             raise TypeError(f"light_table must be a TableSize, got {type(self.light_table).__name__}")
         if not 0.0 <= self.min_roughness < 1.0:
@@ -187,7 +192,8 @@ class OptimiseSettings:
         """
         preset = cls(solver="adam", lobe="gaussian", view_weight="paper", diffuse="lambert", sweeps=12,
                      sweep_refit_every=4, iterations=150, grid_start=True, lr=0.02, refit_every=50,
-                     tv_weight=1e-3, min_roughness=0.0, light_table=TableSize(rows=0, rank=4))
+                     tv_weight=1e-3, min_roughness=0.0, light_table=TableSize(rows=0, rank=4),
+                     variance_scale=1.0)
         return replace(preset, **overrides)
 
     @classmethod
@@ -199,7 +205,8 @@ class OptimiseSettings:
                    diffuse=config["diffuse"], sweeps=config["sweeps"],
                    sweep_refit_every=config["sweep_refit_every"],
                    iterations=config["iterations"], lr=config["lr"], refit_every=config["refit_every"],
-                   tv_weight=config["tv_weight"], workers=workers, light_table=TableSize(**config["light_table"]), grid_start=config["init"] == "grid",
+                   tv_weight=config["tv_weight"], workers=workers, light_table=TableSize(**config["light_table"]),
+                   variance_scale=config["variance_scale"], grid_start=config["init"] == "grid",
                    min_roughness=identifiable_roughness(config["lmax"], lobe=config["lobe"]) if bound == "auto"
                    else float(bound))
 

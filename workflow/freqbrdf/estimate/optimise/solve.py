@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
@@ -14,15 +15,36 @@ from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature
 from freqbrdf.estimate.optimise.kernels import LmStep, lm_sweep
 from freqbrdf.estimate.optimise.model import ForwardModel, estimate_light
+from freqbrdf.estimate.optimise.posterior import laplace_variance
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params, unpack_params
 from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings, method_terms
 from freqbrdf.methods import get_method
 from freqbrdf.util.threads import set_threads
 from freqbrdf.util.validation import check_int
 
-__all__ = ["adam_step", "optimise", "estimate_capture"]
+__all__ = ["Fit", "adam_step", "optimise", "estimate_capture"]
 
 _LM_TRIES = 4  # damping increases per texel and LM sweep before its step is given up
+
+
+@dataclass(frozen=True)
+class Fit:
+    """What `optimise` returns.
+
+    Attributes
+    ----------
+    params : dict of numpy.ndarray
+        ``base_color`` (T, 3), ``roughness`` (T,), ``metallic`` (T,), float64 in [0, 1].
+    loss_curve : numpy.ndarray
+        The objective at the start of each Adam iteration or LM sweep (`optimise`).
+    std : dict of numpy.ndarray
+        The same keys and shapes: each parameter's posterior standard deviation
+        (:mod:`freqbrdf.estimate.optimise.posterior`), NaN for texels without observations.
+    """
+
+    params: dict[str, np.ndarray]
+    loss_curve: np.ndarray
+    std: dict[str, np.ndarray]
 
 
 def adam_step(
@@ -71,7 +93,7 @@ def optimise(
     method: str = "freq",
     *,
     settings: OptimiseSettings,
-) -> tuple[dict[str, np.ndarray], np.ndarray]:
+) -> Fit:
     """Per-texel principled parameters minimising the L1 + TV objective (Adam or LM: ``settings.solver``).
 
     Parameters
@@ -96,28 +118,31 @@ def optimise(
 
     Returns
     -------
-    params : dict of numpy.ndarray
-        ``base_color`` (T, 3), ``roughness`` (T,), ``metallic`` (T,), float64
-        in [0, 1]. Texels without observations move only through TV.
-    loss_curve : numpy.ndarray
-        The objective at the start of each Adam iteration or LM sweep
+    Fit
+        ``params``: texels without observations move only through TV.
+        ``loss_curve``: the objective at the start of each Adam iteration or LM sweep
         (after that iteration's refit, if any, so it may jump at refits);
         Adam's has one more, after its last step; where that ends above the
         first, Adam returns its iterate of lowest objective instead of the
         last; an LM run that meets ``sweep_tolerance`` early has fewer
-        entries than ``sweeps``.
+        entries than ``sweeps``. ``std``: the posterior's standard deviations
+        (:func:`freqbrdf.estimate.optimise.posterior.laplace_variance`) at the
+        last light terms.
     """
     method_terms(method)  # a bad method is named before any work
     if not isinstance(settings, OptimiseSettings):
         raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
     model = ForwardModel.of(build_problem(obs, irradiance, settings.dtype), light, method, settings)
-    perm = model.problem.perm
-    xp = _start(model, init, settings)[perm]  # internal order
+    problem = model.problem
+    xp = _start(model, init, settings)[problem.perm]  # internal order
     descend = _descend_lm if settings.solver == "lm" else _descend
-    xp, curve = descend(xp, model, settings)
-    x = np.empty_like(xp)
-    x[perm] = xp
-    return unpack_params(x), curve
+    xp, curve, terms = descend(xp, model, settings)
+    variance = np.full_like(xp, np.nan)
+    variance[: problem.n_observed] = laplace_variance(lambda z: model.radiance(z, terms), xp, problem.radiance,
+                                                      problem.start, settings.variance_scale)
+    x, std = np.empty_like(xp), np.empty_like(xp)
+    x[problem.perm], std[problem.perm] = xp, np.sqrt(variance)
+    return Fit(unpack_params(x), curve, unpack_params(std))
 
 
 def estimate_capture(
@@ -128,7 +153,7 @@ def estimate_capture(
     workers: int,
     init: Mapping[str, np.ndarray] | None = None,
     log: logging.Logger | None = None,
-) -> tuple[dict[str, np.ndarray], np.ndarray]:
+) -> Fit:
     """One capture's estimate by ``method``, as rule ``optimise_svbrdf`` makes it: the method's
     light and the irradiance (`estimate_light`), then `optimise` with the settings of
     config ``optimise``, each step logged with its time.
@@ -152,7 +177,7 @@ def estimate_capture(
 
     Returns
     -------
-    params, loss_curve
+    Fit
         As `optimise`.
     """
     log = log or logging.getLogger(__name__)
@@ -169,7 +194,8 @@ def estimate_capture(
         log.info("%d point sources outside the SH light (optimise.point_sources: %s), %.1f%% of the map's power",
                  len(light.sources.power), config["point_sources"],
                  100.0 * points / (points + light.weighted_radiance.sum()))
-    params, curve = optimise(obs, e, light, init=init, method=method, settings=settings)
+    fit = optimise(obs, e, light, init=init, method=method, settings=settings)
+    curve = fit.loss_curve
     if settings.solver == "adam":
         done = f"{settings.iterations} Adam steps, loss {curve[0]:.4g} -> {curve[-1]:.4g}"
         if curve[-1] > curve[0]:  # it ended above its start: the iterate of lowest loss is kept
@@ -177,7 +203,7 @@ def estimate_capture(
     else:
         done = f"{len(curve)} LM sweeps, loss {curve[0]:.4g} -> {curve[-1]:.4g} (at the last sweep's start)"
     log.info("%s: %s in %.1f s", method, done, time.perf_counter() - start)
-    return params, curve
+    return fit
 
 
 def _start(model: ForwardModel, init: Mapping[str, np.ndarray] | None, settings: OptimiseSettings) -> np.ndarray:
@@ -221,10 +247,10 @@ class _RefittedTerms:
         return int(slots.size)
 
 
-def _descend_lm(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) -> tuple[np.ndarray, np.ndarray]:
+def _descend_lm(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) -> tuple[np.ndarray, ...]:
     """Levenberg-Marquardt sweeps from ``xp`` (internal order; `freqbrdf.estimate.optimise.kernels.lm_sweep`), refitting
-    the shadowed light every ``sweep_refit_every`` sweeps; returns the parameters and the objective
-    at the start of each sweep.
+    the shadowed light every ``sweep_refit_every`` sweeps; returns the parameters, the objective
+    at the start of each sweep and the last light terms.
 
     Each sweep updates the texels of one checkerboard colour with the other's held fixed, then the
     other colour: block coordinate descent, so the objective does not rise between refits. The
@@ -232,11 +258,11 @@ def _descend_lm(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings)
     """
     xp = xp.copy()
     xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
-    if not settings.sweeps:
-        return xp, np.empty(0)
     set_threads(settings.workers)
     problem = model.problem
     light = _RefittedTerms(xp, model, settings)
+    if not settings.sweeps:
+        return xp, np.empty(0), light.terms
     step = LmStep(
         data_scale=1.0 / (3.0 * problem.n_pairs), tv_scale=settings.tv_weight / max(problem.tv_operator.shape[0], 1),
         lower=np.array([0.0, 0.0, 0.0, settings.min_roughness, 0.0]), upper=np.ones(N_PARAMS),
@@ -254,14 +280,14 @@ def _descend_lm(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings)
         curve.append(loss)
         for texels in problem.colours:
             lm_sweep(xp, texels, light.terms, problem.pair_data, model.kernel, (problem.nb_start, problem.nb), step, lam)
-    return xp, np.asarray(curve)
+    return xp, np.asarray(curve), light.terms
 
 
-def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) -> tuple[np.ndarray, np.ndarray]:
+def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) -> tuple[np.ndarray, ...]:
     """Adam from ``xp`` (internal order), refitting the shadowed light every ``refit_every`` steps;
     returns the last iterate (or, if its objective ended above the start's, the iterate of lowest
-    objective) and the objective at the start of each iteration and after the last
-    (``iterations + 1`` values).
+    objective), the objective at the start of each iteration and after the last
+    (``iterations + 1`` values) and the last light terms.
 
     Adam moves every parameter by about ``lr`` a step however small its gradient, so from a start
     already near the optimum (the grid start on a small capture) its iterates can wander above
@@ -271,13 +297,13 @@ def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) ->
     """
     xp = xp.copy()
     xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
+    set_threads(settings.workers)
+    light = _RefittedTerms(xp, model, settings)
     if not settings.iterations:
-        return xp, np.empty(0)
+        return xp, np.empty(0), light.terms
     m1 = np.zeros_like(xp)
     m2 = np.zeros_like(xp)
     curve = np.empty(settings.iterations + 1)
-    set_threads(settings.workers)
-    light = _RefittedTerms(xp, model, settings)
     best, best_loss = xp, np.inf
     for it in range(settings.iterations):
         if it and it % settings.refit_every == 0:
@@ -289,4 +315,4 @@ def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) ->
         xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
         xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     curve[-1] = model.objective(xp, light.terms, settings.tv_weight)[0]
-    return (xp if curve[-1] <= curve[0] else best), curve
+    return (xp if curve[-1] <= curve[0] else best), curve, light.terms

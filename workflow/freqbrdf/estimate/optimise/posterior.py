@@ -1,0 +1,79 @@
+"""A per-texel posterior of the fitted parameters: the Laplace (Gauss-Newton) approximation.
+
+The entropy of the spectrum search (paper section 5, Eq. 23) scores how well the light
+constrains a texel's lobe before anything is fitted; it cannot see whether the fitted model
+explains the texel's observations. This posterior uses what the fit shows. Around the
+estimate ``x`` (5 parameters), with ``J`` the Jacobian of the texel's model radiance over its
+observed pairs and channels and ``r`` its residuals,
+
+    precision = J^T J / s^2 + prior I,     s^2 = |r|^2 / (3 n - 5),
+
+``n`` the texel's observed views: the curvature of its least-squares misfit scaled by the
+residual variance it leaves (a texel the model fits badly is less sure), plus a prior as wide
+as a uniform on [0, 1] (precision 12), so that an unconstrained direction (a rough metal against
+a diffuse dielectric under soft light) stays bounded. Its diagonal, scaled by ``variance_scale``
+(a calibration of the interval's coverage, fitted on the tuning set), gives each parameter's
+variance. The light terms are held fixed, as in the fit (the shadowing follows roughness only
+at refits).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from freqbrdf.estimate.optimise.settings import N_PARAMS
+
+__all__ = ["PRIOR_PRECISION", "laplace_variance", "expected_error"]
+
+PRIOR_PRECISION = 12.0  # 1 / variance of a uniform on [0, 1]
+_STEP = 1e-4  # finite-difference step of the Jacobian (parameters in [0, 1])
+
+
+def laplace_variance(radiance, xp: np.ndarray, observed: np.ndarray, start: np.ndarray,
+                     variance_scale: float = 1.0) -> np.ndarray:
+    """Posterior variance of every parameter of the observed texels (module docstring).
+
+    Parameters
+    ----------
+    radiance : callable
+        ``radiance(xp) -> (N, 3)``: the model radiance of the N observed pairs at internal-order
+        parameters ``xp`` (`freqbrdf.estimate.optimise.model.ForwardModel.radiance`).
+    xp : numpy.ndarray
+        Shape ``(T, 5)``, the estimate in internal order (observed texels first).
+    observed : numpy.ndarray
+        Shape ``(N, 3)``: the observed radiance of the pairs.
+    start : numpy.ndarray
+        Shape ``(T_obs + 1,)``: first pair of each observed texel.
+    variance_scale : float
+        Factor on every variance (> 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(T_obs, 5)``, float64: variances of base R, G, B, roughness, metallic.
+    """
+    if not (np.isfinite(variance_scale) and variance_scale > 0):
+        raise ValueError(f"variance_scale must be a finite number > 0, got {variance_scale!r}")
+    n_obs = start.shape[0] - 1
+    slot = np.repeat(np.arange(n_obs), np.diff(start))
+    model = radiance(xp)
+    jacobian = np.empty(model.shape + (N_PARAMS,))
+    for q in range(N_PARAMS):
+        moved = xp.copy()
+        step = np.where(moved[:, q] > 0.5, -_STEP, _STEP)  # inwards, so the step stays in [0, 1]
+        moved[:, q] += step
+        jacobian[..., q] = (radiance(moved) - model) / step[slot][:, None]
+    residual = model - np.asarray(observed, dtype=np.float64)
+    curvature = np.add.reduceat(np.einsum("ncq,ncr->nqr", jacobian, jacobian), start[:-1])  # (T_obs, 5, 5)
+    dof = np.maximum(3 * np.diff(start) - N_PARAMS, 1)
+    s2 = np.maximum(np.add.reduceat((residual**2).sum(axis=1), start[:-1]) / dof, 1e-12)
+    precision = curvature / s2[:, None, None] + PRIOR_PRECISION * np.eye(N_PARAMS)
+    return variance_scale * np.diagonal(np.linalg.inv(precision), axis1=1, axis2=2).copy()
+
+
+def expected_error(variance: np.ndarray) -> np.ndarray:
+    """The expected squared parameter error of texels with these posterior variances (T, 5): the
+    mean over base colour (its channels averaged), roughness and metallic, as
+    `freqbrdf.report.metrics.parameter_error_map` averages the squared errors."""
+    v = np.asarray(variance, dtype=np.float64)
+    return (v[:, :3].mean(axis=1) + v[:, 3] + v[:, 4]) / 3.0
