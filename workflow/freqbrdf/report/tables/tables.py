@@ -358,7 +358,8 @@ def headline_table(df: pd.DataFrame, boot: Bootstrap | None = None) -> pd.DataFr
     return pd.DataFrame(rows, columns=["Method", "Parameter MSE", "PSNR-H", "Time"])
 
 
-UNCERTAINTY_MAPS = (("entropy", "Entropy"), ("views", "-views"), ("light", "-light"), ("random", "Random"))
+UNCERTAINTY_MAPS = (("entropy", "Entropy"), ("posterior", "Posterior"), ("views", "-views"), ("light", "-light"),
+                    ("random", "Random"))
 """The uncertainty maps of :func:`uncertainty_table`'s AUSE columns: metric part, column label."""
 
 
@@ -376,9 +377,11 @@ def uncertainty_table(df: pd.DataFrame, boot: Bootstrap | None = None, digits: i
     Returns
     -------
     DataFrame of str
-        ``Method, Error, AUSE: Entropy, -views, -light, Random, Pearson r, partial r | views``: one row
-        per method and error (parameter, BRDF); lower AUSE ranks better; the correlations (parameter
-        error only) with the entropy, then with the view count's linear part removed.
+        ``Method, Error, AUSE: Entropy, Posterior, -views, -light, Random, Pearson r, partial r | views,
+        90% coverage``: one row per method and error (parameter, BRDF); lower AUSE ranks better (the
+        posterior's only for the methods of rule optimise_svbrdf); the correlations (parameter error
+        only) with the entropy, then with the view count's linear part removed; the share of true
+        parameters inside the posterior's 90% intervals.
     """
     rows = []
     for method in ordered_methods(df.method[df.metric == "ause_entropy_parameter"]):
@@ -390,6 +393,8 @@ def uncertainty_table(df: pd.DataFrame, boot: Bootstrap | None = None, digits: i
             row["Pearson r"] = _mean(df, method, "pearson_entropy_error", 2, boot) if correlations else ""
             row["partial r | views"] = (_mean(df, method, "partial_pearson_entropy_error_views", 2, boot)
                                         if correlations else "")
+            row["90% coverage"] = _mean(df, method, "coverage90_all", 3, boot) if correlations else ""
             rows.append(row)
-    columns = ["Method", "Error", *(f"AUSE: {t}" for _, t in UNCERTAINTY_MAPS), "Pearson r", "partial r | views"]
+    columns = ["Method", "Error", *(f"AUSE: {t}" for _, t in UNCERTAINTY_MAPS), "Pearson r", "partial r | views",
+               "90% coverage"]
     return pd.DataFrame(rows, columns=columns)

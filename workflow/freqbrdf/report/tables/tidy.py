@@ -18,9 +18,11 @@ with an empty ``view``). Metric names:
   method's per-texel squared parameter error; ``partial_pearson_entropy_error_views``:
   the same with the view count's linear part removed from both;
 - ``ause_<map>_<error>``: per capture, the area between the sparsification curve
-  of an uncertainty map (``entropy``, ``views``, ``inv_sqrt_views``, ``light``,
+  of an uncertainty map (``entropy``, ``posterior``, ``views``, ``inv_sqrt_views``, ``light``,
   ``random``) and the oracle's, for the ``parameter`` or ``brdf`` error
-  (:mod:`freqbrdf.report.sparsification`);
+  (:mod:`freqbrdf.report.sparsification`); ``partial_pearson_posterior_error_views``;
+  ``coverage90_<texture>``, ``coverage90_all``: the share of true values inside the
+  posterior's 90% intervals (:mod:`freqbrdf.estimate.optimise.posterior`);
 - ``time_s``, ``max_rss_mb``, ``time_total_s``, ``speed_ratio_vs_mitsuba``;
 - ``mitsuba_time_to_match_s``, ``mitsuba_reached``, ``speed_ratio_equal_accuracy``:
   for the methods that need the observations, Mitsuba's time to reach their MSE
