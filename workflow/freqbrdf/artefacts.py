@@ -388,14 +388,14 @@ def read_svbrdf(source: str | os.PathLike | Mapping[str, str | os.PathLike]) -> 
 
 
 def write_posterior_std(directory: str | os.PathLike, resolution: int, texel: np.ndarray,
-                        std: Mapping[str, np.ndarray]) -> None:
+                        std: Mapping[str, np.ndarray], prior_std: float) -> None:
     """``std_{name}.exr`` of every texture in `TEXTURES`: each parameter's posterior standard
     deviation (`freqbrdf.estimate.optimise.solve.Fit.std`) at the texels ``texel`` (T,) of a
-    ``resolution``-texel atlas, NaN elsewhere and where ``std`` is NaN (no observations)."""
+    ``resolution``-texel atlas, ``prior_std`` at the atlas's other texels."""
     n = check_int(resolution, "resolution", 1) ** 2
     for name in TEXTURES:
         values = np.asarray(std[name], dtype=np.float32)
-        atlas = np.full((n,) + values.shape[1:], np.nan, np.float32)
+        atlas = np.full((n,) + values.shape[1:], prior_std, np.float32)
         atlas[texel] = values
         write_exr(Path(directory) / f"std_{name}.exr", atlas.reshape((resolution, resolution) + values.shape[1:]))
 

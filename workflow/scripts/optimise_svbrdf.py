@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf, write_posterior_std, write_svbrdf
+from freqbrdf.estimate.optimise.posterior import prior_variance
 from freqbrdf.estimate.optimise.solve import estimate_capture
 from freqbrdf.util.io import atomic_directory, atomic_path, read_exr
 from freqbrdf.util.logs import run_script
@@ -19,7 +20,8 @@ def main(smk, log):
                            init, log)
     with atomic_directory(smk.output.estimate) as tmp:
         write_svbrdf(tmp, Svbrdf.from_texels(texels.resolution, texels.texel, fit.params, obs.observed))
-        write_posterior_std(tmp, texels.resolution, texels.texel, fit.std)
+        prior_std = float(np.sqrt(prior_variance(smk.params.optimise["variance_scale"])))
+        write_posterior_std(tmp, texels.resolution, texels.texel, fit.std, prior_std)
         with atomic_path(tmp / "loss.tsv") as f:
             pd.DataFrame({"iteration": np.arange(len(fit.loss_curve)), "loss": fit.loss_curve}).to_csv(
                 f, sep="\t", index=False)

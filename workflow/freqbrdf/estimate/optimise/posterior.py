@@ -23,10 +23,15 @@ import numpy as np
 
 from freqbrdf.estimate.optimise.settings import N_PARAMS
 
-__all__ = ["PRIOR_PRECISION", "laplace_variance", "expected_error"]
+__all__ = ["PRIOR_PRECISION", "prior_variance", "laplace_variance", "expected_error"]
 
 PRIOR_PRECISION = 12.0  # 1 / variance of a uniform on [0, 1]
 _STEP = 1e-4  # finite-difference step of the Jacobian (parameters in [0, 1])
+
+
+def prior_variance(variance_scale: float = 1.0) -> float:
+    """The variance of a texel no view observes: the prior's, scaled as every variance is."""
+    return variance_scale / PRIOR_PRECISION
 
 
 def laplace_variance(radiance, xp: np.ndarray, observed: np.ndarray, start: np.ndarray,

@@ -15,7 +15,7 @@ from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature
 from freqbrdf.estimate.optimise.kernels import LmStep, lm_sweep
 from freqbrdf.estimate.optimise.model import ForwardModel, estimate_light
-from freqbrdf.estimate.optimise.posterior import laplace_variance
+from freqbrdf.estimate.optimise.posterior import laplace_variance, prior_variance
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params, unpack_params
 from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings, method_terms
 from freqbrdf.methods import get_method
@@ -39,7 +39,8 @@ class Fit:
         The objective at the start of each Adam iteration or LM sweep (`optimise`).
     std : dict of numpy.ndarray
         The same keys and shapes: each parameter's posterior standard deviation
-        (:mod:`freqbrdf.estimate.optimise.posterior`), NaN for texels without observations.
+        (:mod:`freqbrdf.estimate.optimise.posterior`); a texel without observations keeps the
+        prior's (`freqbrdf.estimate.optimise.posterior.prior_variance`).
     """
 
     params: dict[str, np.ndarray]
@@ -137,7 +138,7 @@ def optimise(
     xp = _start(model, init, settings)[problem.perm]  # internal order
     descend = _descend_lm if settings.solver == "lm" else _descend
     xp, curve, terms = descend(xp, model, settings)
-    variance = np.full_like(xp, np.nan)
+    variance = np.full_like(xp, prior_variance(settings.variance_scale))  # what no view observes keeps the prior
     variance[: problem.n_observed] = laplace_variance(lambda z: model.radiance(z, terms), xp, problem.radiance,
                                                       problem.start, settings.variance_scale)
     x, std = np.empty_like(xp), np.empty_like(xp)
