@@ -280,6 +280,11 @@ def test_metrics_csv_has_every_row(repo, run):
         for error in ("parameter", "brdf"):
             rows = table[table.metric == f"ause_{name}_{error}"]
             assert sorted(rows.method) == scored and (rows.value > -1e-9).all(), (name, error)
+    # the posterior of the fit (freq's, rule optimise_svbrdf): its AUSE and its 90% intervals' coverage
+    for metric in ("ause_posterior_parameter", "ause_posterior_brdf", "coverage90_all", "coverage90_metallic"):
+        rows = table[table.metric == metric]
+        assert list(rows.method) == ["freq"] and (rows.value > -1e-9).all(), metric
+        assert metric.startswith("ause") or rows.value.between(0.0, 1.0).all()
     same = table.pivot_table(index="method", columns="metric", values="value")
     np.testing.assert_allclose(same.ause_views_parameter, same.ause_inv_sqrt_views_parameter, atol=1e-12)
     curves = pd.read_csv(run / "results/tables/sparsification.tsv", sep="\t", keep_default_na=False)
