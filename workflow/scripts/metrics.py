@@ -88,12 +88,12 @@ def posterior_rows(directory, truth, estimate, texels):
     the coverage of the 90% intervals per texture and over all (``all``)."""
     n = np.asarray(estimate["roughness"]).size
     at = lambda atlas: np.asarray(atlas, dtype=np.float64).reshape(n, -1)[texels]  # noqa: E731 (T, channels)
+    est, tru = {g: at(estimate[g]) for g in TEXTURES}, {g: at(truth[g]) for g in TEXTURES}
     std = {g: at(a) for g, a in read_posterior_std(directory).items()}
-    coverage = {g: interval_coverage(at(estimate[g]), at(truth[g]), std[g]) for g in TEXTURES}
-    stacked = [np.column_stack([f(g) for g in TEXTURES]) for f in (lambda g: at(estimate[g]), lambda g: at(truth[g]),
-                                                                     lambda g: std[g])]
-    coverage["all"] = interval_coverage(*stacked)
-    return expected_error(stacked[2] ** 2), coverage
+    coverage = {g: interval_coverage(est[g], tru[g], std[g]) for g in TEXTURES}
+    est_all, tru_all, std_all = (np.column_stack([d[g] for g in TEXTURES]) for d in (est, tru, std))
+    coverage["all"] = interval_coverage(est_all, tru_all, std_all)
+    return expected_error(std_all**2), coverage
 
 
 def reference_views(test, min_coverage):

@@ -149,7 +149,7 @@ class ShadowedLightTable:
         check_shape(r, "roughness", (n.shape[0],))
         check_finite(r, "roughness")
         corner, weight = equirect_corners(n, self.rows, 2 * self.rows)
-        return corner, weight, self.basis.weights(np.clip(r, 0.0, 1.0))
+        return corner, weight, self.basis.weights(r)  # np.interp holds the ends outside [0, 1]
 
     def at(self, normals: np.ndarray, roughness: np.ndarray) -> np.ndarray:
         """The shadowed light of texels with these normals and roughness (as `weights`).
