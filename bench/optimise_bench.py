@@ -54,6 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from freqbrdf import layout
+from freqbrdf.estimate.light_table import TableSize
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.methods import METHODS
 
@@ -72,6 +73,16 @@ TIMING_CASES = {
 }
 ACCURACY_METHODS = tuple(m for m, entry in METHODS.items() if "table4" in entry.paper_rows)  # the ablation
 LMAX = 20
+def config_setting(**changes: object) -> dict:
+    """The estimator of config/config.yaml (its ``optimise`` section) as overrides of the paper's
+    settings, with ``changes``: the sweep's baseline since the tuning set went to captured light."""
+    import yaml
+
+    optimise = yaml.safe_load((REPO / "config" / "config.yaml").read_text())["optimise"]
+    keys = ("lr", "tv_weight", "lobe", "diffuse", "view_weight", "iterations", "refit_every", "point_sources")
+    return {key: optimise[key] for key in keys} | {"light_table": TableSize(**optimise["light_table"])} | changes
+
+
 # label: overrides of the paper's settings (OptimiseSettings.paper: lr 0.02, TV weight 1e-3, 150 iterations,
 # refits every 50) in a sweep run (config/config.yaml itself has lr 0.05, tv 0.03: the row "lr 0.05, tv 0.03")
 SWEEP = {
@@ -109,6 +120,17 @@ SWEEP = {
         "point_sources": {"max_radius_deg": r, "min_radiance": 20.0}} for r in (2.0, 3.0, 5.0)},
     "lr 0.05, tv 0.03, ggx lobe, albedo, principled": {"lr": 0.05, "tv_weight": 0.03, "lobe": "ggx",
                                                        "view_weight": "albedo", "diffuse": "principled"},
+    "config": config_setting(),
+    **{f"config, point sources {r:g} deg, {m:g}x": config_setting(point_sources={"max_radius_deg": r, "min_radiance": m})
+       for r, m in ((0.0, 20.0), (1.0, 20.0), (2.0, 20.0), (3.0, 100.0), (2.0, 50.0), (2.0, 200.0), (2.0, 300.0))},
+    **{f"config, tv {w:g}": config_setting(tv_weight=w) for w in (0.01, 0.05, 0.1, 0.2)},
+    "config, lr 0.02": config_setting(lr=0.02),
+    "config, lr 0.1": config_setting(lr=0.1),
+    "config, light per texel": config_setting(light_table=TableSize(rows=0, rank=4)),
+    "config, gaussian lobe": config_setting(lobe="gaussian"),
+    "config, lambert": config_setting(diffuse="lambert"),
+    "config, tv 0.05, point sources 3 deg": config_setting(tv_weight=0.05,
+                                                           point_sources={"max_radius_deg": 3.0, "min_radiance": 100.0}),
 }
 
 

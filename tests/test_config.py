@@ -71,7 +71,9 @@ def test_shipped_configs_validate(repo, schema, default, preset):
         (lambda c: c["optimise"].update(sweeps=0), r"config key optimise\.sweeps: 0 is less than the minimum of 1"),
     ],
 )
-def test_mistakes_give_one_line_naming_the_key(schema, default, edit, message):
+def test_mistakes_give_one_line_naming_the_key(repo, schema, default, edit, message):
+    # the tiny preset's procedural environments (studio, sunny, ...), which the edits name
+    update_config(default, {"envs": yaml.safe_load((repo / "config" / "tiny.yaml").read_text())["envs"]})
     edit(default)
     with pytest.raises(ConfigError, match=message) as info:
         check_config(default, schema)

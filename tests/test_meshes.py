@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.optimize import linprog
+from scipy.spatial import ConvexHull
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
@@ -14,8 +15,8 @@ from freqbrdf.scene import meshes as M
 from freqbrdf.scene.meshes import OBJECTS, Mesh, make_mesh
 from freqbrdf.scene.ply import read_ply, write_ply
 
-GENUS = {"sphere": 0, "torus": 1, "die": 0, "vase": 0, "knot": 1}
-CHARTS = {"sphere": 1, "torus": 1, "die": 6, "vase": 1, "knot": 4}
+GENUS = {"sphere": 0, "torus": 1, "die": 0, "vase": 0, "knot": 1, "dented": 0}
+CHARTS = {"sphere": 1, "torus": 1, "die": 6, "vase": 1, "knot": 4, "dented": 1}
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +76,7 @@ def texel_coverage(uvs: np.ndarray, faces: np.ndarray, res: int = 256) -> np.nda
 
 
 def test_unknown_name_and_bad_detail_raise() -> None:
-    assert OBJECTS == ("sphere", "torus", "die", "vase", "knot")
+    assert OBJECTS == ("sphere", "torus", "die", "vase", "knot", "dented")
     with pytest.raises(ValueError) as info:
         make_mesh("teapot")
     message = str(info.value)
@@ -146,6 +147,21 @@ def test_volume_is_positive_and_matches_analytic(meshes: dict[str, Mesh], name: 
         tube = M._KNOT_TUBE * (M._KNOT_MAJOR + M._KNOT_MINOR)
         # Farthest surface point: outermost centre-line point (distance R + a) plus the tube.
         exact = np.pi * tube**2 * length / (M._KNOT_MAJOR + M._KNOT_MINOR + tube) ** 3
+    elif name == "dented":
+        # (1/3) integral of r^3 over directions, by a midpoint rule independent of the mesh's grid
+        theta = (np.arange(2000) + 0.5) * np.pi / 2000
+        phi = (np.arange(4000) + 0.5) * 2 * np.pi / 4000
+        d = np.stack(np.broadcast_arrays(np.sin(theta)[:, None] * np.cos(phi), np.cos(theta)[:, None],
+                                         -np.sin(theta)[:, None] * np.sin(phi)), -1)
+        azimuth = np.radians([0.0, 120.0, 240.0])
+        axes = np.stack([np.sqrt(2 / 3) * np.cos(azimuth), np.full(3, 3**-0.5), -np.sqrt(2 / 3) * np.sin(azimuth)], 1)
+        radius = 1 - M._DENT_DEPTH * np.exp(-(1 - (d @ axes.T) ** 2) / M._DENT_WIDTH**2).sum(-1)
+        area = np.sin(theta)[:, None] * (np.pi / 2000) * (2 * np.pi / 4000)
+        exact = (radius**3 * area).sum() / 3 / radius.max() ** 3
+        # pits, not saucers: a tenth of the surface lies well inside the convex hull
+        hull = ConvexHull(meshes[name].vertices).equations
+        inside = -(meshes[name].vertices @ hull[:, :3].T + hull[:, 3]).max(axis=1)
+        assert inside.max() > 0.15 and (inside > 0.02).mean() > 0.1
     else:
         return
     tolerance = 0.002 if name == "die" else 0.01

@@ -63,6 +63,7 @@ def test_every_output_is_written(run):
         assert (base / f"envs/{env}_spectrum.png").is_file()
         assert (base / f"captures/sphere/{env}/test/cameras.json").is_file()
     assert (base / "envs/spectra.png").is_file()
+    assert not (base / "envs/sky.exr").exists()  # the default's captured map: defined, unused here
     assert not (base / "captures/sphere/sunny/train").exists()  # not a capture env in the tiny preset
     for split in ("train", "test"):
         bench = (base / f"benchmarks/render_capture/sphere_studio_{split}.tsv").read_text().splitlines()
@@ -777,7 +778,7 @@ def consumer(repo, directory, config: dict) -> None:
 
 def test_a_consumer_config_of_three_keys_is_completed_by_the_embedded_default(repo, tmp_path):
     """The module's own default fills in what a consumer leaves out: a three-key config plans the run."""
-    consumer(repo, tmp_path, {"objects": ["sphere"], "capture_envs": ["studio"], "methods": ["spectrum", "freq"]})
+    consumer(repo, tmp_path, {"objects": ["sphere"], "capture_envs": ["sky"], "methods": ["spectrum", "freq"]})
     done = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--cores", "2"], cwd=tmp_path,
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-4000:]

@@ -5,7 +5,8 @@ ALL_TARGETS = (
     + expand(fill(layout.ENV_SPECTRUM, ext="png"), env=ENVS)
     + [layout.ENV_SPECTRA]
     + [fill(layout.CAPTURE, object=o, env=e, split="train") for o, e in SYNTHETIC_CAPTURES]
-    + expand(fill(layout.CAPTURE, split="test"), object=SYNTHETIC_OBJECTS, env=ENVS)
+    # test views where relighting scores them: an environment defined only for other runs costs nothing
+    + [fill(layout.CAPTURE, object=o, env=r, split="test") for o, r in sorted({(o, r) for o, _, _, _, r in RELIGHTS})]
     + ([layout.POSE_ERRORS] if config["poses"]["evaluate_colmap"] else [])
     + [fill(layout.OBSERVATIONS, object=o, env=e, poses=POSES) for o, e in CAPTURES]
     + [fill(layout.ESTIMATE, object=o, env=e, poses=POSES, method=m) for o, e in CAPTURES for m in METHODS]

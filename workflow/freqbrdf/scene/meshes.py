@@ -1,7 +1,7 @@
 """Procedural test objects: triangle meshes with UV atlases (stored as PLY by :mod:`freqbrdf.scene.ply`).
 
-Five objects are available (see :data:`OBJECTS`): ``sphere``, ``torus``, ``die``,
-``vase`` and ``knot``.  Every mesh returned by :func:`make_mesh` satisfies:
+Six objects are available (see :data:`OBJECTS`): ``sphere``, ``torus``, ``die``,
+``vase``, ``knot`` and ``dented``.  Every mesh returned by :func:`make_mesh` satisfies:
 
 * **Frame.** World Y is up.  Azimuth ``phi`` on surfaces of revolution is a
   right-handed rotation about +Y starting at +X, i.e. ``x = cos(phi)``,
@@ -72,6 +72,10 @@ Objects and their UV layouts (sizes before normalisation):
   closes without a seam.  The tube is cut into ``_KNOT_CHARTS`` = 4 pieces of
   equal length; piece ``k`` is a horizontal band (band 0 at small v) with ``u``
   proportional to arc length along the curve and ``v`` around the tube.
+* ``dented``: the sphere's grid and UVs, each point's radius lowered by
+  ``_DENT_DEPTH`` x exp(-sin^2(b) / ``_DENT_WIDTH``^2), summed over the six dents at
+  angle ``b`` from the axes of a cube standing on a corner (none at a pole): concave
+  pits that shadow and light themselves, which a convex object never does.
 """
 
 from __future__ import annotations
@@ -81,7 +85,7 @@ from typing import Callable
 
 import numpy as np
 
-OBJECTS: tuple[str, ...] = ("sphere", "torus", "die", "vase", "knot")
+OBJECTS: tuple[str, ...] = ("sphere", "torus", "die", "vase", "knot", "dented")
 
 # Positions closer than this (relative to the largest coordinate) are one point.
 _WELD_REL_TOL = 1e-9
@@ -92,6 +96,10 @@ _TORUS_MAJOR = 1.0
 _TORUS_MINOR = 0.4
 
 # Die dimensions are relative to the half edge length of the cube.
+# dent depth (radius lost at a dent's centre) and width (sine of its angular radius)
+_DENT_DEPTH = 0.3
+_DENT_WIDTH = 0.3
+
 _DIE_ROUNDING = 0.15
 _DIE_PIP_OFFSET = 0.5
 _DIE_PIP_RADIUS = 0.18
@@ -196,6 +204,7 @@ def make_mesh(name: str, detail: int = 1) -> Mesh:
         "die": _build_die,
         "vase": _build_vase,
         "knot": _build_knot,
+        "dented": _build_dented,
     }
     if name not in builders:
         raise ValueError(f"unknown object {name!r}; valid objects are {', '.join(OBJECTS)}")
@@ -339,6 +348,18 @@ def _build_sphere(detail: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
     positions, uvs = _revolve(radius, height, v, n_phi)
     faces = _grid_faces(n_theta, n_phi)
     return positions, uvs, faces, np.zeros(3)
+
+
+def _build_dented(detail: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    positions, uvs, faces, centre = _build_sphere(detail)
+    # The axes of a cube with its diagonal along +Y, 120 degrees apart in azimuth: the dents
+    # sit 35 degrees above and below the equator, in opposite pairs, so the point symmetry
+    # that centres the bounding sphere holds.
+    azimuth = np.radians([0.0, 120.0, 240.0])
+    axes = np.stack([np.sqrt(2 / 3) * np.cos(azimuth), np.full(3, np.sqrt(1 / 3)), -np.sqrt(2 / 3) * np.sin(azimuth)], 1)
+    sin2 = 1.0 - (positions @ axes.T) ** 2
+    radius = 1.0 - _DENT_DEPTH * np.exp(-sin2 / _DENT_WIDTH**2).sum(axis=1)
+    return positions * radius[:, None], uvs, faces, centre
 
 
 def _build_torus(detail: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
