@@ -142,6 +142,15 @@ def test_check_accuracy_gates_on_median_errors_and_names_the_options():
                                            {**good, "median_rotation_error_deg": 75.0}, 1.0, 0.01).value)
 
 
+def test_poses_no_estimate_uses_are_kept_with_a_warning_when_off(caplog):
+    log = logging.getLogger("test_sfm")
+    good = {"median_rotation_error_deg": 0.6, "median_centre_error_rel": 0.008}
+    assert sfm_alignment.check_accuracy(good, 1.0, 0.01, log=log)
+    with caplog.at_level(logging.WARNING, logger="test_sfm"):
+        assert not sfm_alignment.check_accuracy({**good, "median_centre_error_rel": 0.0157}, 1.0, 0.01, log=log)
+    assert "median centre error 1.57%" in caplog.text and "no estimate uses" in caplog.text
+
+
 def test_options_validation_names_the_config_key():
     with pytest.raises(ValueError, match=r"poses\.colmap\.peak_threshold: -0\.1"):
         sfm_options.SfmOptions(peak_threshold=-0.1)

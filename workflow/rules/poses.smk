@@ -2,7 +2,8 @@ rule colmap_poses:
     """Camera poses of a training capture by pycolmap SfM (SIFT, exhaustive matching,
     incremental mapping on tone-mapped views), similarity-aligned to the capture's
     reference cameras, with a per-view pose-error table. Fails, naming the option
-    to change, if too few views register or the poses are off."""
+    to change, if too few views register, or if the poses are off and an estimate
+    uses them (poses.source or poses.compare); scored only, they are kept."""
     input:
         capture=lambda wildcards: capture_dir(wildcards, "train"),
         code=library("colmap_poses"),
@@ -25,6 +26,7 @@ rule colmap_poses:
             for key in ("min_registered_fraction", "max_median_rotation_deg", "max_median_centre_error")
         },
         seed=lambda wildcards: derived_seed(config["seed"], "sfm", wildcards.object, wildcards.env),
+        poses_used="colmap" in [POSES, *POSE_COMPARE],
     script:
         "../scripts/colmap_poses.py"
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
@@ -276,11 +277,15 @@ def summarise(errors: pandas.DataFrame, n_views: int) -> dict[str, float | int]:
     }
 
 
-def check_accuracy(summary: Mapping[str, float], max_rotation_deg: float, max_centre_rel: float) -> None:
+def check_accuracy(
+    summary: Mapping[str, float], max_rotation_deg: float, max_centre_rel: float, log: logging.Logger | None = None,
+) -> bool:
     """Raise :class:`InaccuratePosesError` if the median pose errors exceed the limits.
 
     Loose matching thresholds can "register" every view with poses tens of
-    degrees off, so the registered fraction alone does not show success.
+    degrees off, so the registered fraction alone does not show success. Poses
+    that no estimate uses (SfM only scored) are a result either way: given
+    ``log``, the error is a warning there instead.
 
     Parameters
     ----------
@@ -290,13 +295,25 @@ def check_accuracy(summary: Mapping[str, float], max_rotation_deg: float, max_ce
         Largest accepted median rotation error, degrees.
     max_centre_rel : float
         Largest accepted median camera-centre error, relative to the camera distance.
+    log : logging.Logger, optional
+        Where to warn instead of raising.
+
+    Returns
+    -------
+    bool
+        Whether both medians are within their limits.
     """
     rotation, centre = summary["median_rotation_error_deg"], summary["median_centre_error_rel"]
-    if not (rotation <= max_rotation_deg and centre <= max_centre_rel):
-        raise InaccuratePosesError(
-            f"COLMAP poses are off the reference: median rotation error {rotation:.2f} deg "
-            f"(limit {max_rotation_deg}), median centre error {centre:.2%} of the camera distance "
-            f"(limit {max_centre_rel:.2%}); lower {CONFIG_PREFIX}two_view_max_error or "
-            f"{CONFIG_PREFIX}filter_max_reproj_error (stricter geometry), or raise the limits "
-            "poses.max_median_rotation_deg / poses.max_median_centre_error"
-        )
+    if rotation <= max_rotation_deg and centre <= max_centre_rel:
+        return True
+    error = InaccuratePosesError(
+        f"COLMAP poses are off the reference: median rotation error {rotation:.2f} deg "
+        f"(limit {max_rotation_deg}), median centre error {centre:.2%} of the camera distance "
+        f"(limit {max_centre_rel:.2%}); lower {CONFIG_PREFIX}two_view_max_error or "
+        f"{CONFIG_PREFIX}filter_max_reproj_error (stricter geometry), or raise the limits "
+        "poses.max_median_rotation_deg / poses.max_median_centre_error"
+    )
+    if log is None:
+        raise error
+    log.warning("%s; kept, since no estimate uses these poses", error)
+    return False
