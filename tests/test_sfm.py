@@ -149,6 +149,12 @@ def test_poses_no_estimate_uses_are_kept_with_a_warning_when_off(caplog):
     with caplog.at_level(logging.WARNING, logger="test_sfm"):
         assert not sfm_alignment.check_accuracy({**good, "median_centre_error_rel": 0.0157}, 1.0, 0.01, log=log)
     assert "median centre error 1.57%" in caplog.text and "no estimate uses" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="test_sfm"):
+        assert not sfm.check_registration(22, 24, 0.95, log=log) and sfm.check_registration(24, 24, 0.95, log=log)
+    assert "registered only 22 of 24" in caplog.text
+    with pytest.raises(sfm.TooFewRegisteredError):  # too few to align to the reference, whatever the use
+        sfm.check_registration(2, 24, 0.95, log=log)
 
 
 def test_options_validation_names_the_config_key():

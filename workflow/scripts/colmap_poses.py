@@ -28,7 +28,10 @@ def main(smk, log):
             # COLMAP's own log is the first thing to read when registration fails.
             if (work / "colmap.log").exists():
                 shutil.copy(work / "colmap.log", Path(smk.log[0]).with_suffix(".colmap.log"))
-        sfm.check_registration(reconstruction.num_reg_images(), len(reference), gates["min_registered_fraction"])
+        # SfM only scored (no estimate uses its poses) keeps what it found, with a warning
+        scored_only = None if smk.params.poses_used else log
+        registered = sfm.check_registration(reconstruction.num_reg_images(), len(reference),
+                                            gates["min_registered_fraction"], log=scored_only)
         cameras, similarity = aligned_cameras(reconstruction, reference, seed=options.seed)
         errors = pose_errors(cameras, reference, reprojection_errors(reconstruction))
         summary = summarise(errors, len(reference))
@@ -42,8 +45,9 @@ def main(smk, log):
         log.info("per-view pose errors:\n%s", errors.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
         with atomic_path(tmp / "pose_errors.tsv") as f:
             errors.to_csv(f, sep="\t", index=False, float_format="%.6g")
-        summary["within_limits"] = check_accuracy(summary, gates["max_median_rotation_deg"],
-                                                  gates["max_median_centre_error"], log=None if smk.params.poses_used else log)
+        accurate = check_accuracy(summary, gates["max_median_rotation_deg"], gates["max_median_centre_error"],
+                                  log=scored_only)
+        summary["within_limits"] = registered and accurate
         write_json(tmp / "summary.json", summary)
 
         # The COLMAP model, moved into the reference frame, next to the cameras the observations use.

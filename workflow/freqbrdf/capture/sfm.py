@@ -395,8 +395,12 @@ def _advice() -> str:
     )
 
 
-def check_registration(n_registered: int, n_views: int, min_fraction: float) -> None:
+def check_registration(n_registered: int, n_views: int, min_fraction: float, log: logging.Logger | None = None) -> bool:
     """Raise :class:`TooFewRegisteredError` unless ``n_registered / n_views >= min_fraction``.
+
+    Poses that no estimate uses (SfM only scored) are a result either way: given
+    ``log``, too few views is a warning there instead, unless fewer than 3 are
+    registered (a similarity to the reference needs 3 centres).
 
     Parameters
     ----------
@@ -404,6 +408,13 @@ def check_registration(n_registered: int, n_views: int, min_fraction: float) -> 
         Views in the reconstruction and in the capture.
     min_fraction : float
         Required fraction, in [0, 1].
+    log : logging.Logger, optional
+        Where to warn instead of raising.
+
+    Returns
+    -------
+    bool
+        Whether the fraction is reached.
     """
     if n_views < 1:
         raise ValueError(f"n_views must be >= 1, got {n_views}")
@@ -412,8 +423,13 @@ def check_registration(n_registered: int, n_views: int, min_fraction: float) -> 
     if not 0.0 <= min_fraction <= 1.0:
         raise ValueError(f"min_fraction {min_fraction} must be in [0, 1]")
     fraction = n_registered / n_views
-    if fraction < min_fraction:
-        raise TooFewRegisteredError(
-            f"COLMAP registered only {n_registered} of {n_views} views ({fraction:.0%}, "
-            f"at least {min_fraction:.0%} needed); {_advice()}"
-        )
+    if fraction >= min_fraction:
+        return True
+    error = TooFewRegisteredError(
+        f"COLMAP registered only {n_registered} of {n_views} views ({fraction:.0%}, "
+        f"at least {min_fraction:.0%} needed); {_advice()}"
+    )
+    if log is None or n_registered < 3:
+        raise error
+    log.warning("%s; kept, since no estimate uses these poses", error)
+    return False

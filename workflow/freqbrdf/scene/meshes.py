@@ -8,7 +8,7 @@ Six objects are available (see :data:`OBJECTS`): ``sphere``, ``torus``, ``die``,
   ``z = -sin(phi)``.
 * **Normalisation.** Positions are translated so that the centre of the bounding
   sphere is at the origin, then scaled so that ``max |vertex| == 1`` (to a few
-  ulp).  The centre is exact by symmetry for sphere, torus, die and knot (the
+  ulp).  The centre is exact by symmetry for sphere, torus, die, knot and dented (the
   origin of their construction is the only point fixed by their symmetry group;
   for the knot this holds up to tessellation, to well below 1e-3) and
   for the vase it is the exact minimiser along the rotation axis.  This is *not*
@@ -17,7 +17,7 @@ Six objects are available (see :data:`OBJECTS`): ``sphere``, ``torus``, ``die``,
   geometric normal ``(v1 - v0) x (v2 - v0)`` points outward and the enclosed
   volume from the divergence theorem is positive.
 * **Topology.** After welding coincident positions every surface is closed and
-  2-manifold (genus 0 for sphere, die and vase; genus 1 for torus and knot).
+  2-manifold (genus 0 for sphere, die, vase and dented; genus 1 for torus and knot).
   Vertices are duplicated along UV seams and chart borders; duplicates are
   bitwise identical in position and normal.  Zero-area triangles (at poles) are
   removed.
@@ -42,7 +42,7 @@ bitmap loaded from an image file should behave the same with row 0 = the first
 (top) row stored in the file, but that path is not tested here.
 
 The sign of the UV-space area of a triangle (``u`` right, ``v`` up) is the same for
-every triangle of an object: negative for sphere and knot, positive for torus,
+every triangle of an object: negative for sphere, dented and knot, positive for torus,
 die and vase.  Negative means a texture shown with row 0 on top appears
 unmirrored when the surface is seen from outside.
 
