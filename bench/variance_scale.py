@@ -2,12 +2,12 @@
 
 Reads a finished run of the tuning preset (config/tuning.yaml; never a reported run): for
 each capture, ``freq``'s estimate and posterior deviations (``std_*.exr``, written with the
-run's own ``variance_scale``, from ``results/run_config.yaml``), the ground truth, and the
+run's own ``variance_scale``, from its recorded config, `freqbrdf.layout.RUN_CONFIG`), the ground truth, and the
 texels some view observes (the texels metrics.csv scores). The scale is the one for which
 |estimate - truth| <= 1.645 std holds for 90% of every parameter of every observed texel,
 pooled over the captures: the run's scale times (q90(|estimate - truth| / std) / 1.645)^2.
 
-    python bench/variance_scale.py --results <tuning run>/results --captures die/sunrise ...
+    python bench/variance_scale.py --results DIR --captures die/sunrise ...   (DIR: the tuning run's results)
 
 Prints the pooled scale, the per-capture and per-parameter ones, and the coverage the run's
 own scale gives.

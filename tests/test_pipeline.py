@@ -352,8 +352,9 @@ def test_changing_relight_envs_reruns_only_the_relighting_and_what_reads_it(repo
     changed.write_text("evaluate:\n  relight_envs: [museum, studio]\n")
     plan = snakemake(repo, run, "-n", extra_config=[changed])
     jobs = planned_jobs(plan.stdout)
+    # sunny and overcast leave the run: the spectra figure and the viewers (the maps they offer) follow
     assert jobs == {"relight": len(tiny_methods(repo)), "metrics": 1, "tables": 1, "relight_figure": 1, "convergence_figure": 1,
-                    "uncertainty_figure": 1, "all": 1}
+                    "uncertainty_figure": 1, "env_spectra": 1, "viewer": 2, "all": 1}
     assert "results/relight/sphere/studio/gt/freq" in plan.stdout
 
 
