@@ -95,11 +95,11 @@ _GUTTER = 0.03
 _TORUS_MAJOR = 1.0
 _TORUS_MINOR = 0.4
 
-# Die dimensions are relative to the half edge length of the cube.
-# dent depth (radius lost at a dent's centre) and width (sine of its angular radius)
+# Dent depth (radius lost at a dent's centre) and width (sine of its angular radius).
 _DENT_DEPTH = 0.3
 _DENT_WIDTH = 0.3
 
+# Die dimensions are relative to the half edge length of the cube.
 _DIE_ROUNDING = 0.15
 _DIE_PIP_OFFSET = 0.5
 _DIE_PIP_RADIUS = 0.18
