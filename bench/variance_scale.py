@@ -37,11 +37,11 @@ def standardised_errors(results: Path, capture: str, method: str = "freq") -> np
     texels = obs.texels.texel[obs.observed]
     estimate_dir = layout.located(layout.ESTIMATE, results, method=method, **where)
     truth = read_svbrdf({g: layout.located(layout.OBJECT_TEXTURE, results, object=obj, texture=g) for g in TEXTURES})
-    columns = lambda atlases: np.column_stack(  # noqa: E731 (T, 5)
-        [np.asarray(atlases[g], dtype=np.float64).reshape(-1, 3 if g == "base_color" else 1)[texels] for g in TEXTURES])
-    estimate = read_svbrdf(estimate_dir)
-    as_dict = lambda s: {g: getattr(s, g) for g in TEXTURES}  # noqa: E731
-    return np.abs(columns(as_dict(estimate)) - columns(as_dict(truth))) / columns(read_posterior_std(estimate_dir))
+    std = read_posterior_std(estimate_dir)
+    std = {g: np.asarray(a, dtype=np.float64).reshape(-1, 3 if g == "base_color" else 1)[texels] for g, a in std.items()}
+    columns = lambda values: np.column_stack([np.reshape(values[g], (len(texels), -1)) for g in TEXTURES])  # noqa: E731
+    error = columns(read_svbrdf(estimate_dir).at_texels(texels)) - columns(truth.at_texels(texels))
+    return np.abs(error) / columns(std)
 
 
 def scale_for_coverage(z: np.ndarray, used: float) -> float:
