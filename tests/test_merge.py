@@ -1,9 +1,9 @@
-"""Tests for freqbrdf.estimate.merge: the entropy-guided merge of paper Table 6."""
+"""Tests for freqbrdf.estimate.merge: the uncertainty-guided merge of paper Table 6."""
 
 import numpy as np
 import pytest
 
-from freqbrdf.estimate.merge import entropy_merge
+from freqbrdf.estimate.merge import lowest_merge, posterior_score
 
 
 def constant_svbrdf(value: float, r: int = 4) -> dict[str, np.ndarray]:
@@ -14,7 +14,7 @@ def test_each_texel_comes_from_the_lowest_entropy_estimate():
     rng = np.random.default_rng(0)
     estimates = [constant_svbrdf(v) for v in (0.1, 0.5, 0.9)]
     entropies = [rng.random((4, 4)) for _ in range(3)]
-    merged, choice = entropy_merge(estimates, entropies)
+    merged, choice = lowest_merge(estimates, entropies)
     np.testing.assert_array_equal(choice, np.argmin(np.stack(entropies), axis=0))
     expected = np.array([0.1, 0.5, 0.9])[choice]
     np.testing.assert_allclose(merged.roughness, expected)
@@ -23,9 +23,9 @@ def test_each_texel_comes_from_the_lowest_entropy_estimate():
 
 def test_ties_go_to_the_first_estimate_and_one_capture_is_the_identity():
     estimates = [constant_svbrdf(0.2), constant_svbrdf(0.7)]
-    merged, choice = entropy_merge(estimates, [np.ones((4, 4)), np.ones((4, 4))])
+    merged, choice = lowest_merge(estimates, [np.ones((4, 4)), np.ones((4, 4))])
     assert (choice == 0).all() and np.allclose(merged.metallic, 0.2)
-    alone, _ = entropy_merge(estimates[1:], [np.zeros((4, 4))])
+    alone, _ = lowest_merge(estimates[1:], [np.zeros((4, 4))])
     np.testing.assert_array_equal(alone.base_color, estimates[1]["base_color"])
 
 
@@ -38,13 +38,32 @@ def test_merge_recovers_the_truth_when_entropy_marks_the_right_capture():
         left[name][:, :2] = truth[name][:, :2]
         right[name][:, 2:] = truth[name][:, 2:]
     h_left = np.where(np.arange(4) < 2, 0.1, 0.8)[None, :].repeat(4, axis=0)
-    merged, _ = entropy_merge([left, right], [h_left, 0.9 - h_left])
+    merged, _ = lowest_merge([left, right], [h_left, 0.9 - h_left])
     for name in truth:
         np.testing.assert_allclose(merged[name], truth[name])
 
 
 def test_mismatched_inputs_are_named():
-    with pytest.raises(ValueError, match="2 estimates and 1 entropy maps"):
-        entropy_merge([constant_svbrdf(0.1)] * 2, [np.zeros((4, 4))])
-    with pytest.raises(ValueError, match=r"estimate 0 is \(4, 4\), entropy maps \(8, 8\)"):
-        entropy_merge([constant_svbrdf(0.1)], [np.zeros((8, 8))])
+    with pytest.raises(ValueError, match="2 estimates and 1 uncertainty maps"):
+        lowest_merge([constant_svbrdf(0.1)] * 2, [np.zeros((4, 4))])
+    with pytest.raises(ValueError, match=r"estimate 0 is \(4, 4\), uncertainty maps \(8, 8\)"):
+        lowest_merge([constant_svbrdf(0.1)], [np.zeros((8, 8))])
+
+
+def test_posterior_score_is_the_mean_variance_of_the_three_parameter_groups():
+    """Base colour's channel variances averaged, then averaged with roughness's and metallic's
+    (as the parameter error map averages squared errors): an analytic value per texel."""
+    std = {"base_color": np.stack([np.full((2, 3), 0.1), np.full((2, 3), 0.2), np.full((2, 3), 0.3)], axis=-1),
+           "roughness": np.full((2, 3), 0.4), "metallic": np.arange(6.0).reshape(2, 3) / 10}
+    expected = ((0.01 + 0.04 + 0.09) / 3 + 0.16 + std["metallic"] ** 2) / 3
+    np.testing.assert_allclose(posterior_score(std), expected)
+
+
+def test_posterior_merge_takes_the_better_determined_capture():
+    """Two captures, each with small deviations on its own half: the merge takes each half from it."""
+    sure, unsure = 0.01, 0.3
+    halves = np.where(np.arange(4) < 2, sure, unsure)[None, :].repeat(4, axis=0)
+    stds = [{"base_color": np.repeat(h[..., None], 3, axis=-1), "roughness": h, "metallic": h}
+            for h in (halves, sure + unsure - halves)]
+    _, choice = lowest_merge([constant_svbrdf(0.1), constant_svbrdf(0.9)], [posterior_score(s) for s in stds])
+    np.testing.assert_array_equal(choice, np.where(np.arange(4) < 2, 0, 1)[None, :].repeat(4, axis=0))

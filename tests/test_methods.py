@@ -51,6 +51,13 @@ def test_registry_rejects_inconsistent_entries():
         methods.Method("x", "X", "optimise_svbrdf", paper_rows={"table9": "X"})
     with pytest.raises(ValueError, match="not registered"):
         methods.build_registry(methods.Method("x", "X", "mitsuba", start="y"))
+    with pytest.raises(ValueError, match="merged_by must be one of"):
+        methods.Method("x", "X", "merge_svbrdf", start="y")
+    with pytest.raises(ValueError, match="merged_by must be one of"):
+        methods.Method("x", "X", "optimise_svbrdf", merged_by="entropy")
+    with pytest.raises(ValueError, match="merges by the posterior, which 'm' does not write"):
+        methods.build_registry(methods.Method("m", "M", "mitsuba"),
+                               methods.Method("x", "X", "merge_svbrdf", start="m", merged_by="posterior"))
 
 
 def test_every_estimating_rule_exists_and_constrains_its_methods():

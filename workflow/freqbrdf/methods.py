@@ -26,6 +26,11 @@ FREQUENCY_RULES = ("spectrum_search", "optimise_svbrdf")
 
 PAPER_TABLES = ("table1", "table2", "table4", "table5", "table6")
 
+MERGE_MAPS = ("entropy", "posterior")
+"""What a merge takes each texel by: the capture of lowest spectrum entropy (the paper's Table 6)
+or of lowest expected error under the fit's posterior (`freqbrdf.estimate.merge.posterior_score`;
+only for estimates of ``optimise_svbrdf``, which write one)."""
+
 
 @dataclass(frozen=True)
 class Method:
@@ -53,6 +58,9 @@ class Method:
         is applied (paper section 4.2), as the paper does.
     entropy_scored : bool
         ``metrics`` correlates the entropy map with this method's per-texel error.
+    merged_by : str or None
+        For the methods of ``merge_svbrdf``: the uncertainty map (one of :data:`MERGE_MAPS`)
+        whose lowest capture each texel is taken from.
     paper_rows : Mapping[str, str]
         The row of each of the paper's tables (keys of :data:`PAPER_TABLES`)
         that this method stands beside; row labels as in
@@ -67,11 +75,15 @@ class Method:
     masking: bool = True
     prefiltered: bool = False
     entropy_scored: bool = False
+    merged_by: str | None = None
     paper_rows: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.rule not in ESTIMATOR_RULES:
             raise ValueError(f"method {self.name!r}: rule must be one of {ESTIMATOR_RULES}, got {self.rule!r}")
+        if (self.rule == "merge_svbrdf") != (self.merged_by in MERGE_MAPS):
+            raise ValueError(f"method {self.name!r}: merged_by must be one of {MERGE_MAPS} for rule merge_svbrdf "
+                             f"and None otherwise, got {self.merged_by!r}")
         unknown = set(self.paper_rows) - set(PAPER_TABLES)
         if unknown:
             raise ValueError(f"method {self.name!r}: paper_rows names unknown tables {sorted(unknown)}")
@@ -86,6 +98,8 @@ def build_registry(*methods: Method) -> Mapping[str, Method]:
     for m in methods:
         if m.start is not None and m.start not in registry:
             raise ValueError(f"method {m.name!r} starts from {m.start!r}, which is not registered")
+        if m.merged_by == "posterior" and registry[m.start].rule != "optimise_svbrdf":
+            raise ValueError(f"method {m.name!r} merges by the posterior, which {m.start!r} does not write")
     return MappingProxyType(registry)
 
 
@@ -107,9 +121,10 @@ METHODS: Mapping[str, Method] = build_registry(
     Method("freq+mitsuba", "Ours+Mitsuba", "mitsuba", start="freq",
            paper_rows={"table1": "Ours+Mitsuba (1 epoch)", "table5": "Ours"}),
     # paper Table 6 merges Mitsuba's results: its "Average" row is Mitsuba's Table 2 average
-    Method("mitsuba_merged", "Mitsuba, entropy-merged", "merge_svbrdf", start="mitsuba",
+    Method("mitsuba_merged", "Mitsuba, entropy-merged", "merge_svbrdf", start="mitsuba", merged_by="entropy",
            paper_rows={"table6": "argmin Entropy"}),
-    Method("freq_merged", "Ours, entropy-merged", "merge_svbrdf", start="freq"),
+    # by the posterior: it merges better than the entropy on the captured tuning set (docs/uncertainty.md)
+    Method("freq_merged", "Ours, posterior-merged", "merge_svbrdf", start="freq", merged_by="posterior"),
 )
 """Every method, in the order of tables and figures."""
 

@@ -276,14 +276,17 @@ def merge_envs(wildcards):
 
 
 def merge_inputs(wildcards):
-    """The start method's estimate and the spectrum entropy of every capture of the object (merge_envs order)."""
+    """The start method's estimate of every capture of the object (merge_envs order), and their
+    spectrum entropies where the method merges by them (an estimate carries its posterior)."""
     w = wildcards
-    start = METHOD_REGISTRY[w.method].start
+    method = METHOD_REGISTRY[w.method]
     envs = merge_envs(w)
-    return {
-        "estimates": [fill(layout.ESTIMATE, object=w.object, env=e, poses=w.poses, method=start) for e in envs],
-        "entropy": [fill(layout.ENTROPY, object=w.object, env=e, poses=w.poses) for e in envs],
+    inputs = {
+        "estimates": [fill(layout.ESTIMATE, object=w.object, env=e, poses=w.poses, method=method.start) for e in envs]
     }
+    if method.merged_by == "entropy":
+        inputs["entropy"] = [fill(layout.ENTROPY, object=w.object, env=e, poses=w.poses) for e in envs]
+    return inputs
 
 
 # ---- input functions of rules/report.smk

@@ -1,9 +1,9 @@
-# Entropy-guided merge of one object's estimates from all its captures (paper Table 6).
+# Uncertainty-guided merge of one object's estimates from all its captures (paper Table 6).
 
 
 rule merge_svbrdf:
-    """Per texel, the parameters of the capture whose spectrum entropy is lowest there
-    (mitsuba_merged: of Mitsuba's estimates, as in the paper; freq_merged: of ours)."""
+    """Per texel, the parameters of the capture least uncertain there (mitsuba_merged: Mitsuba's
+    estimates by the spectrum entropy, as in the paper; freq_merged: ours by their posterior)."""
     input:
         unpack(merge_inputs),
         code=library("merge_svbrdf"),
@@ -23,5 +23,6 @@ rule merge_svbrdf:
         runtime=minutes(1, "texels"),
     params:
         envs=merge_envs,
+        merged_by=lambda w: METHOD_REGISTRY[w.method].merged_by,
     script:
         "../scripts/merge_svbrdf.py"

@@ -1,4 +1,4 @@
-"""Entropy-guided merge of one object's estimates from several captures (rule merge_svbrdf).
+"""Uncertainty-guided merge of one object's estimates from several captures (rule merge_svbrdf).
 
 Wiersma et al. 2024, section 5.6 and Table 6: "for every texel, we use the
 parameters from the environment with the lowest entropy at that texel". The
@@ -6,7 +6,9 @@ entropy is the spectrum entropy of each capture (:mod:`freqbrdf.estimate.spectru
 computed without any ground truth, so the merge needs none either. The
 paper merges Mitsuba's optimisation results (its Table 6 "Average" row equals
 Mitsuba's Table 2 average); the registry has a merge of ``mitsuba`` and one of
-``freq`` (:data:`freqbrdf.methods.METHODS`).
+``freq`` (:data:`freqbrdf.methods.METHODS`), each naming the map it merges by:
+the entropy, or for estimates that carry one, their fit's posterior
+(`posterior_score`), which needs no ground truth either.
 """
 
 from __future__ import annotations
@@ -16,23 +18,45 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from freqbrdf.artefacts import Svbrdf
+from freqbrdf.estimate.optimise.posterior import expected_error
 from freqbrdf.sphere.brdf import TEXTURES
 
-__all__ = ["entropy_merge"]
+__all__ = ["lowest_merge", "posterior_score"]
 
 
-def entropy_merge(
-    estimates: Sequence[Mapping[str, np.ndarray]], entropies: Sequence[np.ndarray]
+def posterior_score(std: Mapping[str, np.ndarray]) -> np.ndarray:
+    """The expected squared parameter error of every texel under an estimate's posterior.
+
+    Parameters
+    ----------
+    std : mapping
+        Posterior standard deviations as `freqbrdf.artefacts.read_posterior_std` returns
+        them: ``base_color`` (R, R, 3), ``roughness`` and ``metallic`` (R, R); the prior's
+        where no view observes the texel, so those texels score worst.
+
+    Returns
+    -------
+    ndarray, shape (R, R), float64
+    """
+    shape = np.shape(std["roughness"])
+    variance = np.column_stack([np.asarray(std[g], np.float64).reshape(shape[0] * shape[1], -1) ** 2
+                                for g in TEXTURES])
+    return expected_error(variance).reshape(shape)
+
+
+def lowest_merge(
+    estimates: Sequence[Mapping[str, np.ndarray]], scores: Sequence[np.ndarray]
 ) -> tuple[Svbrdf, np.ndarray]:
-    """Per texel, the parameters of the estimate whose entropy is lowest there.
+    """Per texel, the parameters of the estimate whose uncertainty is lowest there.
 
     Parameters
     ----------
     estimates : sequence of E SVBRDF mappings
         ``base_color`` (R, R, 3), ``roughness`` and ``metallic`` (R, R) of the same
         object from E captures (the same atlas).
-    entropies : sequence of E ndarray, shape (R, R)
-        Each capture's entropy atlas in [0, 1] (1 where unobserved or outside the atlas).
+    scores : sequence of E ndarray, shape (R, R)
+        Each capture's uncertainty atlas, larger = less sure: the entropy (1 where
+        unobserved or outside the atlas) or `posterior_score`.
 
     Returns
     -------
@@ -42,16 +66,16 @@ def entropy_merge(
         Index of the estimate each texel was taken from; ties go to the earliest
         (put the capture the merge is filed under first).
     """
-    if len(estimates) == 0 or len(estimates) != len(entropies):
-        raise ValueError(f"entropy_merge: {len(estimates)} estimates and {len(entropies)} entropy maps; "
+    if len(estimates) == 0 or len(estimates) != len(scores):
+        raise ValueError(f"lowest_merge: {len(estimates)} estimates and {len(scores)} uncertainty maps; "
                          "need the same number, at least one")
-    h = np.stack([np.asarray(e, dtype=np.float64) for e in entropies])
+    h = np.stack([np.asarray(e, dtype=np.float64) for e in scores])
     shape = h.shape[1:]
     for k, estimate in enumerate(estimates):
         if estimate["roughness"].shape != shape:
-            raise ValueError(f"entropy_merge: estimate {k} is {estimate['roughness'].shape}, entropy maps {shape}")
+            raise ValueError(f"lowest_merge: estimate {k} is {estimate['roughness'].shape}, uncertainty maps {shape}")
     if not np.all(np.isfinite(h)):
-        raise ValueError("entropy_merge: entropy maps hold NaN/Inf values")
+        raise ValueError("lowest_merge: uncertainty maps hold NaN/Inf values")
     choice = np.argmin(h, axis=0)
     merged = {}
     for name in TEXTURES:

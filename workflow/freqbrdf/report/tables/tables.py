@@ -276,7 +276,7 @@ def finetune_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot:
 
 
 def merge_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot: Bootstrap | None = None) -> pd.DataFrame:
-    """Paper Table 6: each entropy-merged method beside the mean of the estimates it merges.
+    """Paper Table 6: each merged method beside the mean of the estimates it merges.
 
     Returns
     -------
