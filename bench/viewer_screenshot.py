@@ -1,7 +1,7 @@
 """Screenshot of a capture viewer (`freqbrdf.layout.VIEWER`) once its models have loaded.
 
     python bench/viewer_screenshot.py VIEWER --out shots \
-        [--shot "plain=rotate=0" --shot "sunny=rotate=0&env=sunny&entropy=1"] [--size 1400x900]
+        [--shot "plain=rotate=0" --shot "sunny=rotate=0&env=sunny&overlay=uncertainty"] [--size 1400x900]
 
 VIEWER is a capture's ``viewer.html`` (`freqbrdf.layout.VIEWER`, e.g.
 sphere/studio's with gt poses, in the results directory).

@@ -24,7 +24,7 @@ from freqbrdf.scene.ply import read_ply, write_ply
 from freqbrdf.scene.render import relit_views
 from freqbrdf.export.rgbe import decode_rgbe, encode_rgbe, hdr_bytes, read_hdr, write_hdr
 from freqbrdf.scene.textures import svbrdf_textures
-from freqbrdf.export.viewer import Panel, entropy_overlay, viewer_html
+from freqbrdf.export.viewer import Panel, overlay_image, posterior_overlay, viewer_html
 
 HALF_STEP = 0.5 / 255.0
 
@@ -174,20 +174,27 @@ def test_hdr_errors_name_the_problem(tmp_path):
 
 def test_viewer_page_inlines_everything(textures, sphere):
     materials = [GltfMaterial.from_textures("truth", textures), GltfMaterial.from_textures("freq", textures)]
-    panels = [Panel("truth", "Ground truth", False), Panel("freq", "Ours </script> & co", True)]
+    panels = [Panel("truth", "Ground truth", None), Panel("freq", "Ours </script> & co", "freq")]
     envs = {"studio": hdr_bytes(studio(16, seed=1))}
-    html = viewer_html("sphere <studio>", sphere, materials, panels, envs, np.full((32, 32), 0.5), [0, 1, 4], 35.0)
+    overlays = {"entropy": overlay_image(np.full((32, 32), 0.5)), "freq": posterior_overlay(np.full((32, 32), 0.01))}
+    html = viewer_html("sphere <studio>", sphere, materials, panels, envs, overlays, [0, 1, 4], 35.0)
     # nothing to fetch: three inline scripts (data, three.js, viewer), no module, no link
     assert re.findall(r"<script[^>]*>", html) == ['<script type="application/json" id="freqbrdf-data">', "<script>", "<script>"]
     assert "<link" not in html
     assert html.lower().count("</script") == 3  # the three inline scripts' own ends
     data = json.loads(html.split('id="freqbrdf-data">', 1)[1].split("</script>", 1)[0])
     assert data["panels"][1]["label"] == "Ours </script> & co" and list(data["envs"]) == ["studio"]
+    assert [p["uncertainty"] for p in data["panels"]] == [None, "freq"] and sorted(data["overlays"]) == ["entropy", "freq"]
     assert "<title>sphere &lt;studio></title>" in html
     with pytest.raises(ValueError, match="disagree"):
-        viewer_html("x", sphere, materials[:1], panels, envs, np.zeros((4, 4)), [0, 1, 4], 35.0)
-    overlay = entropy_overlay(np.array([[0.0, 1.0]]))
+        viewer_html("x", sphere, materials[:1], panels, envs, overlays, [0, 1, 4], 35.0)
+    with pytest.raises(ValueError, match=r"overlays \['freq'\] are missing"):
+        viewer_html("x", sphere, materials, panels, envs, {"entropy": overlays["entropy"]}, [0, 1, 4], 35.0)
+    overlay = overlay_image(np.array([[0.0, 1.0]]))
     assert overlay[0, 0, 2] > overlay[0, 0, 0] and overlay[0, 1, 0] > overlay[0, 1, 2]  # Turbo: blue certain, red not
+    # the posterior's expected squared error as RMS error: 0.25 (squared: 0.0625) and above is full red
+    np.testing.assert_array_equal(posterior_overlay(np.array([[0.0, 0.0625, 4.0]])), overlay_image(np.array([[0.0, 1.0, 1.0]])))
+    np.testing.assert_array_equal(posterior_overlay(np.array([[0.01]])), overlay_image(np.array([[0.4]])))
 
 
 def test_the_viewer_credits_each_third_party_asset_once_with_its_licence(textures, sphere):
@@ -200,8 +207,8 @@ def test_the_viewer_credits_each_third_party_asset_once_with_its_licence(texture
     credits = asset_credits(records)
     assert credits == ["the bunny <Stanford> (Stanford terms)", "Poly Haven (CC0-1.0)"]
     materials = [GltfMaterial.from_textures("truth", textures)]
-    html = viewer_html("x", sphere, materials, [Panel("truth", "Truth", False)], {"s": hdr_bytes(studio(16, seed=1))},
-                       np.zeros((4, 4)), [0, 1, 4], 35.0, credits=credits)
+    html = viewer_html("x", sphere, materials, [Panel("truth", "Truth", None)], {"s": hdr_bytes(studio(16, seed=1))},
+                       {"entropy": overlay_image(np.zeros((4, 4)))}, [0, 1, 4], 35.0, credits=credits)
     footer = html.split("<footer>", 1)[1].split("</footer>", 1)[0]
     assert "<br>the bunny &lt;Stanford> (Stanford terms)<br>Poly Haven (CC0-1.0)" in footer
 
@@ -272,8 +279,8 @@ def test_viewer_draws_every_model_lit_like_the_capture(repo, mi, tmp_path, textu
     """Headless Chromium opens the page, waits until the models have loaded, and the screenshot shows:
     the object in every panel (not the background colour), the ground-truth panel lit as Mitsuba lights
     the capture from the same view (so the environment's orientation and the camera are right: the
-    same map turned a quarter round correlates worse), and the entropy overlay and the environment
-    selector changing the picture."""
+    same map turned a quarter round correlates worse), and the overlay's layers (the method's own
+    uncertainty, the entropy) and the environment selector changing the picture."""
     from freqbrdf.util.io import read_png
     from freqbrdf.export.viewer import BACKGROUND
 
@@ -290,14 +297,17 @@ def test_viewer_draws_every_model_lit_like_the_capture(repo, mi, tmp_path, textu
     capture, turned = render(env), render(np.roll(env, env.shape[1] // 4, axis=1))
     other = {**textures, "base_color": textures["base_color"][..., ::-1], "roughness": 1.0 - textures["roughness"]}
     materials = [GltfMaterial.from_textures("truth", textures), GltfMaterial.from_textures("freq", other)]
-    panels = [Panel("truth", "Ground truth", False), Panel("freq", "Ours", True)]
+    panels = [Panel("truth", "Ground truth", None), Panel("freq", "Ours", "freq")]
     envs = {"studio": hdr_bytes(env), "dark": hdr_bytes(env * 0.05)}
-    entropy = np.tile(np.linspace(0.0, 1.0, 32), (32, 1))
+    # the entropy a gradient across the atlas, the method's own map uniformly red (blue where the entropy is 0)
+    overlays = {"entropy": overlay_image(np.tile(np.linspace(0.0, 1.0, 32), (32, 1))),
+                "freq": posterior_overlay(np.ones((32, 32)))}
     page = tmp_path / "viewer.html"
-    page.write_text(viewer_html("test", sphere, materials, panels, envs, entropy, cameras.centres[0], fov), encoding="utf-8")
+    page.write_text(viewer_html("test", sphere, materials, panels, envs, overlays, cameras.centres[0], fov), encoding="utf-8")
 
     result = viewer_screenshots(repo, page, tmp_path / "shots",
-                                {"plain": "rotate=0", "entropy": "rotate=0&entropy=1", "dark": "rotate=0&env=dark"})
+                                {"plain": "rotate=0", "entropy": "rotate=0&overlay=entropy",
+                                 "uncertainty": "rotate=0&overlay=uncertainty", "dark": "rotate=0&env=dark"})
     assert result["status"] == "ready" and result["message"] == "2 models loaded", result
     assert [p["name"] for p in result["panels"]] == ["truth", "freq"]
     shots = {name: [panel_pixels(read_png(path), p) for p in result["panels"]] for name, path in result["shots"].items()}
@@ -323,8 +333,12 @@ def test_viewer_draws_every_model_lit_like_the_capture(repo, mi, tmp_path, textu
     print("rank correlation with the capture:", corr)
     assert corr["capture"] > 0.75 and corr["capture"] > corr["turned"] + 0.2
 
-    # The overlay changes the method's panel only; the darker environment darkens both.
-    assert np.abs(shots["entropy"][0] - shots["plain"][0]).mean() < 1.0
-    assert np.abs(shots["entropy"][1] - shots["plain"][1]).mean() > 10
+    # Each layer changes the method's panel only, each in its own way; the darker environment darkens both.
+    for layer in ("entropy", "uncertainty"):
+        assert np.abs(shots[layer][0] - shots["plain"][0]).mean() < 1.0
+        assert np.abs(shots[layer][1] - shots["plain"][1]).mean() > 10
+    assert np.abs(shots["uncertainty"][1] - shots["entropy"][1]).mean() > 10
+    red = shots["uncertainty"][1][..., 0] - shots["uncertainty"][1][..., 2]
+    assert np.median(red[np.abs(shots["plain"][1] - background).max(axis=2) > 8]) > 0  # the red map shows
     for k in range(2):
         assert shots["dark"][k].mean() < shots["plain"][k].mean() - 10

@@ -8,6 +8,7 @@ from freqbrdf import layout
 from freqbrdf.config import derived_seed, size_factor
 from freqbrdf.dependencies import script_modules
 from freqbrdf.estimate.mitsuba_settings import run_settings
+from freqbrdf.export.viewer import ENTROPY as ENTROPY_OVERLAY
 from freqbrdf.layout import fill
 from freqbrdf.scene import assets, scans
 from freqbrdf.methods import FREQUENCY_RULES, METHODS as METHOD_REGISTRY, methods_of, wildcard_pattern
@@ -229,12 +230,27 @@ def candidate_poses(wildcards):
 
 
 # ---- input functions of rules/export.smk
+VIEWER_POSTERIORS = [m for m in METHODS if METHOD_REGISTRY[m].rule == "optimise_svbrdf"]  # estimates with a posterior
+
+
+def viewer_posteriors(wildcards):
+    """The estimates (directories) whose posterior the viewer overlays, in VIEWER_POSTERIORS order."""
+    w = wildcards
+    return [fill(layout.ESTIMATE, object=w.object, env=w.env, poses=w.poses, method=m) for m in VIEWER_POSTERIORS]
+
+
 def viewer_panels(wildcards):
-    """The viewer's panels: the ground truth (synthetic captures only), then every method."""
+    """The viewer's panels: the ground truth (synthetic captures only), then every method, whose
+    uncertainty overlay is its posterior's (an overlay named after it) or the capture's entropy."""
     panels = (
-        [] if wildcards.object in REAL_CAPTURES else [{"name": layout.TRUTH, "label": "Ground truth", "overlay": False}]
+        []
+        if wildcards.object in REAL_CAPTURES
+        else [{"name": layout.TRUTH, "label": "Ground truth", "uncertainty": None}]
     )
-    return panels + [{"name": m, "label": METHOD_REGISTRY[m].label, "overlay": True} for m in METHODS]
+    return panels + [
+        {"name": m, "label": METHOD_REGISTRY[m].label, "uncertainty": m if m in VIEWER_POSTERIORS else ENTROPY_OVERLAY}
+        for m in METHODS
+    ]
 
 
 # ---- input functions of rules/mitsuba.smk

@@ -80,13 +80,15 @@ rule export_env:
 
 rule viewer:
     """The ground truth and every method's .glb side by side in one self-contained HTML page (three.js,
-    inlined): one camera for all panels, any benchmark environment, the entropy as an overlay."""
+    inlined): one camera for all panels, any benchmark environment, each method's uncertainty (its
+    posterior's where it has one) or the entropy as an overlay."""
     input:
         truth=lambda w: [] if w.object in REAL_CAPTURES else [fill(layout.TRUTH_GLTF, object=w.object)],
         estimates=lambda w: [fill(layout.GLTF, object=w.object, env=w.env, poses=w.poses, method=m) for m in METHODS],
         envs=expand(layout.ENVMAP_HDR, env=ENVS),
         sources=asset_sources,
         entropy=layout.ENTROPY,
+        posteriors=viewer_posteriors,
         cameras=pose_dir,  # the page opens on the capture's first view
         web=[str(WEB_DIR / asset) for asset in WEB_ASSETS],
         code=library("viewer"),
@@ -105,6 +107,7 @@ rule viewer:
         runtime=minutes(1, "texels"),
     params:
         panels=viewer_panels,
+        posteriors=VIEWER_POSTERIORS,
         envs=ENVS,
         title=lambda w: f"FreqBRDF: {w.object} / {w.env} ({w.poses} poses)",
     script:

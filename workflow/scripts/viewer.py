@@ -4,12 +4,13 @@ from pathlib import Path
 
 import numpy as np
 
-from freqbrdf.artefacts import read_entropy
+from freqbrdf.artefacts import read_entropy, read_posterior_std
+from freqbrdf.estimate.merge import posterior_score
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.export.gltf import read_glb
 from freqbrdf.util.io import atomic_path, read_json
 from freqbrdf.util.logs import run_script
-from freqbrdf.export.viewer import Panel, asset_credits, same_mesh, viewer_html
+from freqbrdf.export.viewer import ENTROPY, Panel, asset_credits, overlay_image, posterior_overlay, same_mesh, viewer_html
 
 
 def main(smk, log):
@@ -30,8 +31,11 @@ def main(smk, log):
     fov_deg = float(np.degrees(2.0 * np.arctan(0.5 * cameras.height / cameras.K[0, 1, 1])))
     envs = {name: Path(path).read_bytes() for name, path in zip(smk.params.envs, smk.input.envs, strict=True)}
     credits = asset_credits([read_json(path) for path in smk.input.sources])
+    overlays = {ENTROPY: overlay_image(read_entropy(smk.input.entropy).atlas)}
+    for method, estimate in zip(smk.params.posteriors, smk.input.posteriors, strict=True):
+        overlays[method] = posterior_overlay(posterior_score(read_posterior_std(estimate)))
     html = viewer_html(smk.params.title, scenes[0].mesh, [s.materials[0] for s in scenes], panels, envs,
-                       read_entropy(smk.input.entropy).atlas, cameras.centres[0], fov_deg, credits=credits)
+                       overlays, cameras.centres[0], fov_deg, credits=credits)
     with atomic_path(smk.output[0]) as tmp:
         tmp.write_text(html, encoding="utf-8")
     log.info("%s: %d panels, %d environments, %.1f MB", smk.output[0], len(panels), len(envs), len(html) / 1e6)

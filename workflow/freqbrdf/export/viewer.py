@@ -2,8 +2,10 @@
 
 The page (``web/viewer.html`` and ``web/viewer.js``) draws one panel per
 material with three.js (vendored in ``web/vendor``, see its README), all
-panels through one camera, lit by a selectable environment map, with the
-capture's entropy map as an optional overlay on the methods' panels.
+panels through one camera, lit by a selectable environment map, with an
+uncertainty overlay on the methods' panels: each method's own map (the
+expected error under its fit's posterior, where its estimate has one; else
+the capture's entropy), or the capture's entropy on every panel.
 
 Everything is inlined in the one file, the models included: a page opened
 from ``file://`` may neither import modules nor fetch files. The materials
@@ -27,7 +29,8 @@ import numpy as np
 from freqbrdf.export.gltf import GltfMaterial, encode_png, glb_bytes
 from freqbrdf.scene.meshes import Mesh
 
-__all__ = ["WEB_DIR", "WEB_ASSETS", "THREE_VERSION", "Panel", "entropy_overlay", "same_mesh", "viewer_html"]
+__all__ = ["WEB_DIR", "WEB_ASSETS", "THREE_VERSION", "ENTROPY", "POSTERIOR_RMS_MAX", "Panel", "overlay_image",
+           "posterior_overlay", "same_mesh", "viewer_html"]
 
 WEB_DIR = Path(__file__).parent / "web"
 WEB_ASSETS = ("viewer.html", "viewer.js", "vendor/three.bundle.min.js")
@@ -36,6 +39,12 @@ THREE_VERSION = "0.187.0"
 """three.js version of ``web/vendor/three.bundle.min.js`` (web/vendor/package.json)."""
 BACKGROUND = "#3a3a40"
 """Clear colour of the panels: mid-dark, so that neither a black nor a white object vanishes."""
+ENTROPY = "entropy"
+"""The overlay of the capture's spectrum entropy, which every page has."""
+POSTERIOR_RMS_MAX = 0.25
+"""Expected RMS parameter error shown in full red: above what `freq` reaches on a whole capture
+(its parameter MSE, 0.02-0.06 on the tuning sets, is an RMS error of 0.14-0.24), so red marks texels
+expected to be worse than a typical estimate."""
 
 
 @dataclass(frozen=True)
@@ -48,22 +57,23 @@ class Panel:
         Its node and material in the scene (the method, or ``truth``).
     label : str
         Its caption.
-    overlay : bool
-        Whether the entropy overlay is drawn on it (the methods' panels).
+    uncertainty : str or None
+        The overlay (a key of `viewer_html`'s ``overlays``) its own uncertainty layer shows;
+        None: no overlay (the ground truth's panel).
     """
 
     name: str
     label: str
-    overlay: bool
+    uncertainty: str | None
 
 
-def entropy_overlay(atlas: np.ndarray) -> np.ndarray:
-    """The entropy atlas in the Turbo colour map (blue: certain, red: uncertain), as in the maps figure.
+def overlay_image(atlas: np.ndarray) -> np.ndarray:
+    """An uncertainty atlas in the Turbo colour map (blue: certain, red: uncertain), as in the maps figure.
 
     Parameters
     ----------
     atlas : numpy.ndarray
-        Shape ``(R, R)``: normalised entropy in [0, 1] (clipped).
+        Shape ``(R, R)``: uncertainty in [0, 1] (clipped), e.g. the normalised entropy.
 
     Returns
     -------
@@ -74,9 +84,15 @@ def entropy_overlay(atlas: np.ndarray) -> np.ndarray:
 
     atlas = np.asarray(atlas, dtype=np.float64)
     if atlas.ndim != 2:
-        raise ValueError(f"entropy atlas must have shape (R, R), got {atlas.shape}")
+        raise ValueError(f"an overlay's atlas must have shape (R, R), got {atlas.shape}")
     rgb = colormaps["turbo"](np.clip(atlas, 0.0, 1.0))[..., :3]
     return np.round(rgb * 255.0).astype(np.uint8)
+
+
+def posterior_overlay(score: np.ndarray) -> np.ndarray:
+    """`overlay_image` of an estimate's expected squared parameter error (R, R)
+    (`freqbrdf.estimate.merge.posterior_score`), as RMS error over `POSTERIOR_RMS_MAX`."""
+    return overlay_image(np.sqrt(np.maximum(np.asarray(score, dtype=np.float64), 0.0)) / POSTERIOR_RMS_MAX)
 
 
 def same_mesh(a: Mesh, b: Mesh) -> bool:
@@ -101,7 +117,7 @@ def _escape(text: str) -> str:
 
 
 def viewer_html(title: str, mesh: Mesh, materials: Sequence[GltfMaterial], panels: Sequence[Panel],
-                envs: Mapping[str, bytes], entropy: np.ndarray, camera_position: Sequence[float],
+                envs: Mapping[str, bytes], overlays: Mapping[str, np.ndarray], camera_position: Sequence[float],
                 fov_deg: float, panel_size: int = 300, credits: Sequence[str] = ()) -> str:
     """The viewer page.
 
@@ -114,12 +130,13 @@ def viewer_html(title: str, mesh: Mesh, materials: Sequence[GltfMaterial], panel
     materials : sequence of GltfMaterial
         One per panel, in panel order.
     panels : sequence of Panel
-        Node names (= material names), captions, overlay flags.
+        Node names (= material names), captions, each panel's own uncertainty overlay.
     envs : Mapping
         Environment name -> Radiance ``.hdr`` bytes (Mitsuba's equirect layout);
         the first is shown first.
-    entropy : numpy.ndarray
-        Shape ``(R, R)``: the capture's entropy atlas (:func:`entropy_overlay`).
+    overlays : Mapping
+        Name -> ``(R, R, 3)`` uint8 sRGB image on the atlas (:func:`overlay_image`): `ENTROPY`,
+        the capture's entropy, and every panel's ``uncertainty``.
     camera_position : sequence of float
         Shape ``(3,)``: where the shared camera starts, looking at the origin (world units).
     fov_deg : float
@@ -138,6 +155,9 @@ def viewer_html(title: str, mesh: Mesh, materials: Sequence[GltfMaterial], panel
         raise ValueError(f"materials {[m.name for m in materials]} and panels {[p.name for p in panels]} disagree")
     if not envs:
         raise ValueError("the viewer needs at least one environment map")
+    missing = sorted(({ENTROPY} | {p.uncertainty for p in panels if p.uncertainty is not None}) - set(overlays))
+    if missing:
+        raise ValueError(f"overlays {missing} are missing: given {sorted(overlays)}")
     position = np.asarray(camera_position, dtype=np.float64)
     if position.shape != (3,) or not np.all(np.isfinite(position)) or np.linalg.norm(position) == 0:
         raise ValueError(f"camera_position must be a finite, non-zero 3-vector, got {camera_position!r}")
@@ -146,10 +166,11 @@ def viewer_html(title: str, mesh: Mesh, materials: Sequence[GltfMaterial], panel
         return base64.b64encode(data).decode("ascii")
 
     data = {
-        "panels": [{"name": p.name, "label": p.label, "overlay": p.overlay} for p in panels],
+        "panels": [{"name": p.name, "label": p.label, "uncertainty": p.uncertainty} for p in panels],
         "scene": b64(glb_bytes(mesh, materials)),
         "envs": {name: b64(hdr) for name, hdr in envs.items()},
-        "entropy": b64(encode_png(entropy_overlay(entropy))),
+        "overlays": {name: b64(encode_png(image)) for name, image in overlays.items()},
+        "entropy": ENTROPY,
         "camera": {"position": position.tolist(), "fov_deg": float(fov_deg)},
         "panel_size": int(panel_size),
         "background": BACKGROUND,
@@ -161,6 +182,7 @@ def viewer_html(title: str, mesh: Mesh, materials: Sequence[GltfMaterial], panel
         "THREE": _inline((WEB_DIR / "vendor" / "three.bundle.min.js").read_text(encoding="utf-8")),
         "VIEWER": _inline((WEB_DIR / "viewer.js").read_text(encoding="utf-8")),
         "THREE_VERSION": THREE_VERSION,
+        "POSTERIOR_RMS_MAX": f"{POSTERIOR_RMS_MAX:g}",
         "CREDITS": "".join(f"<br>{_escape(line)}" for line in credits),
     }
     template = (WEB_DIR / "viewer.html").read_text(encoding="utf-8")

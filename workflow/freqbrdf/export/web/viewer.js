@@ -48,7 +48,7 @@
     caption.textContent = panel.label;
     figure.append(view, caption);
     grid.append(figure);
-    return { name: panel.name, overlay: panel.overlay, view: view, scene: new THREE.Scene(), overlays: [] };
+    return { name: panel.name, uncertainty: panel.uncertainty, view: view, scene: new THREE.Scene(), overlay: null };
   });
 
   // Environment maps, decoded and prefiltered for image-based lighting on first use.
@@ -85,32 +85,35 @@
   const envSelect = document.getElementById("env");
   for (const name of Object.keys(data.envs)) envSelect.add(new Option(name, name));
   const rotate = document.getElementById("rotate");
-  const entropy = document.getElementById("entropy");
+  const layer = document.getElementById("overlay");
   const opacity = document.getElementById("opacity");
   const exposure = document.getElementById("exposure");
-  // Settings from the address (#env=NAME&rotate=0&entropy=1), read again when it changes,
+  // Settings from the address (#env=NAME&rotate=0&overlay=uncertainty), read again when it changes,
   // so that a link opens the page as shown and a test can switch settings without reloading.
   function readAddress() {
     const options = new URLSearchParams(window.location.hash.slice(1));
     if (options.has("env") && options.get("env") in data.envs) envSelect.value = options.get("env");
     rotate.checked = options.get("rotate") !== "0";
-    entropy.checked = options.get("entropy") === "1";
+    layer.value = ["uncertainty", "entropy"].includes(options.get("overlay")) ? options.get("overlay") : "off";
   }
   readAddress();
 
+  const overlayTextures = {}; // overlay name -> texture, filled by load()
   function applySettings() {
     const env = environment(envSelect.value);
     for (const panel of panels) {
       panel.scene.environment = env;
-      for (const mesh of panel.overlays) {
-        mesh.visible = entropy.checked;
-        mesh.material.opacity = Number(opacity.value);
+      if (panel.overlay !== null) {
+        const shown = layer.value === "entropy" ? data.entropy : panel.uncertainty;
+        panel.overlay.visible = layer.value !== "off";
+        panel.overlay.material.map = overlayTextures[shown];
+        panel.overlay.material.opacity = Number(opacity.value);
       }
     }
     controls.autoRotate = rotate.checked;
     renderer.toneMappingExposure = Math.pow(2, Number(exposure.value));
   }
-  for (const input of [envSelect, rotate, entropy, opacity, exposure]) input.addEventListener("input", applySettings);
+  for (const input of [envSelect, rotate, layer, opacity, exposure]) input.addEventListener("input", applySettings);
   window.addEventListener("hashchange", () => {
     readAddress();
     if (body.dataset.status === "ready") applySettings();
@@ -143,23 +146,26 @@
 
   async function load() {
     const gltf = await new THREE.GLTFLoader().parseAsync(bytes(data.scene).buffer, "");
-    const overlayTexture = await new THREE.TextureLoader().loadAsync("data:image/png;base64," + data.entropy);
-    overlayTexture.flipY = false; // glTF's uv convention, as the model's own textures
-    overlayTexture.colorSpace = THREE.SRGBColorSpace;
+    for (const [name, png] of Object.entries(data.overlays)) {
+      const texture = await new THREE.TextureLoader().loadAsync("data:image/png;base64," + png);
+      texture.flipY = false; // glTF's uv convention, as the model's own textures
+      texture.colorSpace = THREE.SRGBColorSpace;
+      overlayTextures[name] = texture;
+    }
     for (const panel of panels) {
       // three.js sanitises object names; the node's name as written is kept in userData.
       let node;
       gltf.scene.traverse((object) => { if (node === undefined && object.userData.name === panel.name) node = object; });
       if (node === undefined) throw new Error("the model has no node " + panel.name);
       panel.scene.add(node);
-      if (panel.overlay) {
+      if (panel.uncertainty !== null) {
         const material = new THREE.MeshBasicMaterial({
-          map: overlayTexture, transparent: true, depthWrite: false, toneMapped: false,
+          map: overlayTextures[panel.uncertainty], transparent: true, depthWrite: false, toneMapped: false,
           polygonOffset: true, polygonOffsetFactor: -1, polygonOffsetUnits: -1,
         });
         const mesh = new THREE.Mesh(node.geometry, material);
         node.add(mesh);
-        panel.overlays.push(mesh);
+        panel.overlay = mesh;
       }
     }
     applySettings();
