@@ -38,12 +38,14 @@ def test_blocked_light_is_zero_above_the_horizon_and_follows_the_light():
 
 def test_region_table_averages_inside_and_outside():
     error = {"freq": np.array([1.0, 3.0, 10.0, 20.0])}
-    entropy = np.array([0.2, 0.4, 0.6, 0.8])
-    table = region_table(error, entropy, np.array([True, True, False, False]))
+    maps = {"entropy": np.array([0.2, 0.4, 0.6, 0.8]), "posterior_freq": np.array([0.01, 0.03, 0.0, 0.02])}
+    table = region_table(error, maps, np.array([True, True, False, False]))
     assert table.loc["shadowed", "mse_freq"] == 2.0 and table.loc["lit", "mse_freq"] == 15.0
     assert table.loc["shadowed", "mean_entropy"] == pytest.approx(0.3)
+    assert table.loc["shadowed", "mean_posterior_freq"] == pytest.approx(0.02)
+    assert table.loc["lit", "mean_posterior_freq"] == pytest.approx(0.01)
     assert table.loc["lit", "texels"] == 2
-    assert np.isnan(region_table(error, entropy, np.zeros(4, bool)).loc["shadowed", "mse_freq"])
+    assert np.isnan(region_table(error, maps, np.zeros(4, bool)).loc["shadowed", "mse_freq"])
 
 
 def test_image_psnr_of_a_known_difference():
@@ -75,6 +77,8 @@ def test_pose_effect_table_reports_the_change_of_each_method():
 def test_stress_and_pair_tables_put_each_capture_beside_its_reference():
     rows = [("sphere_beckmann", "studio", "gt", "freq", "", "mse_average", 0.09),
             ("sphere", "studio", "gt", "freq", "", "mse_average", 0.06),
+            ("sphere_beckmann", "studio", "gt", "freq", "", "mean_posterior_error", 0.012),
+            ("sphere", "studio", "gt", "freq", "", "mean_posterior_error", 0.008),
             ("sphere_beckmann", "studio", "gt", "", "", "mean_entropy", 0.5),
             ("sphere", "studio", "gt", "", "", "mean_entropy", 0.4),
             ("sphere_rough", "studio", "gt", "freq", "", "mse_roughness", 0.2),
@@ -83,6 +87,7 @@ def test_stress_and_pair_tables_put_each_capture_beside_its_reference():
     table = stress_table(df, {"sphere_beckmann": ("studio", "Beckmann")}, {"sphere_beckmann": ("sphere", "studio")},
                          "gt", ["freq"])
     assert table.iloc[0]["MSE"] == "0.0900 (0.0600)" and table.iloc[0]["Mean entropy"] == "0.500 (0.400)"
+    assert table.iloc[0]["Mean posterior error"] == "0.0120 (0.0080)"
     pairs = pair_table(df, [(("sphere_rough", "studio"), ("sphere_shiny", "studio_blur"), 31.25)],
                        {"sphere_rough": ("sphere", "studio")}, "gt", ["freq"])
     assert list(pairs.Capture) == ["sphere_rough / studio", "sphere_shiny / studio_blur"]

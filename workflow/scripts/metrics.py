@@ -73,6 +73,7 @@ def parameter_rows(smk):
             if METHODS[method].rule == "optimise_svbrdf":  # its fit's posterior (read_posterior_std)
                 posterior, coverage = posterior_rows(directory, truth(obj), estimate, texels)
                 maps["posterior"] = posterior
+                rows.append(key | dict(metric="mean_posterior_error", value=float(posterior.mean())))
                 rows.append(key | dict(metric="partial_pearson_posterior_error_views",
                                        value=partial_pearson(posterior, error, views)))
                 rows += [key | dict(metric=f"coverage90_{name}", value=value) for name, value in coverage.items()]

@@ -6,7 +6,8 @@ error and entropy inside and outside an unseen occluder's shadow, and the ambigu
 import numpy as np
 import pandas as pd
 
-from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
+from freqbrdf.artefacts import read_entropy, read_observations, read_posterior_std, read_svbrdf
+from freqbrdf.estimate.merge import posterior_score
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.report.figures import stress_figure
@@ -21,16 +22,19 @@ from freqbrdf.report.tables.tidy import read_tidy
 
 
 def capture_arrays(smk, index):
-    """The observations of stress capture ``index``, its observed texels (atlas indices), their entropy
-    and each method's per-texel squared parameter error (arrays of shape (T_observed,))."""
+    """The observations of stress capture ``index``, its observed texels (atlas indices), their
+    uncertainty maps (``entropy``, and ``posterior_<method>`` for the methods whose estimates have
+    a posterior) and each method's per-texel squared parameter error (arrays of shape (T_observed,))."""
     p, n, k = smk.params, len(smk.params.methods), len(TEXTURES)
     obs = read_observations(smk.input.observations[index])
     texels = obs.texels.texel[obs.observed]
-    entropy = read_entropy(smk.input.entropy[index]).atlas.ravel()[texels]
+    uncertainty = {"entropy": read_entropy(smk.input.entropy[index]).atlas.ravel()[texels]}
     truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth[k * index : k * (index + 1)])))
-    error = {m: parameter_error_map(truth, read_svbrdf(d)).ravel()[texels]
-             for m, d in zip(p.methods, smk.input.estimates[n * index : n * (index + 1)])}
-    return obs, texels, entropy, error
+    estimates = dict(zip(p.methods, smk.input.estimates[n * index : n * (index + 1)]))
+    error = {m: parameter_error_map(truth, read_svbrdf(d)).ravel()[texels] for m, d in estimates.items()}
+    uncertainty |= {f"posterior_{m}": posterior_score(read_posterior_std(d)).ravel()[texels]
+                    for m, d in estimates.items() if METHODS[m].rule == "optimise_svbrdf"}
+    return obs, texels, uncertainty, error
 
 
 def pair_psnr(first, second):
@@ -47,23 +51,23 @@ def occluder_regions(smk, arrays, index, log):
     p = smk.params
     regions, blocked_by = [], {}
     for (obj, env, occluder), envmap in zip(p.occluded, smk.input.envmaps):
-        obs, texels, entropy, error = arrays[index[obj]]
+        obs, texels, uncertainty, error = arrays[index[obj]]
         positions, normals = obs.texels.position[obs.observed], obs.texels.normal[obs.observed]
         blocked = blocked_light(positions, normals, read_exr(envmap), occluder["height"], occluder["radius"])
         blocked_by[obj] = blocked
         shadowed = blocked >= p.shadow_fraction
         log.info("%s: %d of %d observed texels lose >= %.0f%% of their light to the occluder", obj,
                  int(shadowed.sum()), len(blocked), 100 * p.shadow_fraction)
-        scored = [(f"{obj} / {env}", entropy, error, shadowed)]
+        scored = [(f"{obj} / {env}", uncertainty, error, shadowed)]
         ref = p.references.get(obj)
         if ref is not None and ref[0] in index:
             # The control (same object, light and views, no occluder) on the same atlas texels: what
             # the region's error is without the occluder (lower texels are seen from fewer views).
-            _, ref_texels, ref_entropy, ref_error = arrays[index[ref[0]]]
+            _, ref_texels, ref_uncertainty, ref_error = arrays[index[ref[0]]]
             ref_shadowed = np.isin(ref_texels, texels[shadowed])
-            scored.append((f"{ref[0]} / {ref[1]} (no occluder)", ref_entropy, ref_error, ref_shadowed))
-        for name, ent, err, mask in scored:
-            table = region_table(err, ent, mask)
+            scored.append((f"{ref[0]} / {ref[1]} (no occluder)", ref_uncertainty, ref_error, ref_shadowed))
+        for name, maps, err, mask in scored:
+            table = region_table(err, maps, mask)
             table.insert(0, "capture", name)
             regions.append(table.rename_axis("region").reset_index())
     return regions, blocked_by
@@ -97,21 +101,24 @@ def main(smk, log):
     arrays = [capture_arrays(smk, i) for i in range(len(p.captures))]
     regions, blocked_by = occluder_regions(smk, arrays, index, log)
     figure_rows = []
-    for (obj, env), (obs, texels, entropy, error) in zip(p.captures, arrays):
+    for (obj, env), (obs, texels, uncertainty, error) in zip(p.captures, arrays):
         figure_rows.append({"name": f"{obj} / {env}", "resolution": obs.texels.resolution, "texels": texels,
-                            "entropy": entropy, "error": error[shown], "blocked": blocked_by.get(obj)})
+                            "entropy": uncertainty["entropy"], "error": error[shown], "blocked": blocked_by.get(obj)})
     region_rows = pd.concat(regions, ignore_index=True) if regions else pd.DataFrame(columns=["capture", "region"])
     with atomic_path(smk.output.regions) as tmp:
         region_rows.to_csv(tmp, sep="\t", index=False, float_format="%.6g")
     if regions:
         shown_regions = region_rows.rename(columns={f"mse_{m}": f"MSE {method_label(m)}" for m in p.methods}
+                                           | {f"mean_posterior_{m}": f"Mean posterior error {method_label(m)}"
+                                              for m in p.methods}
                                            | {"mean_entropy": "Mean entropy"})
         shown_regions = shown_regions.map(lambda v: fmt(v, 4) if isinstance(v, float) else str(v))
         sections.append(("Unseen occluder: inside and outside its shadow", shown_regions,
                          f"Observed texels whose light the occluder (absent from the estimators' mesh) cuts by at "
                          f"least {100 * p.shadow_fraction:.0f}% (shadowed) or less (lit): mean per-texel parameter "
-                         "error of each method and mean entropy; the control capture (no occluder), where the "
-                         "config has one, on the same texels."))
+                         "error of each method, the mean error its posterior expects (where it has one) and the "
+                         "mean entropy; the control capture (no occluder), where the config has one, on the same "
+                         "texels."))
 
     if p.pairs:
         pairs = [(first, second, pair_psnr(smk.input.pairs[2 * i], smk.input.pairs[2 * i + 1]))

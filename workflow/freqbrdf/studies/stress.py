@@ -79,28 +79,31 @@ def blocked_light(positions: np.ndarray, normals: np.ndarray, envmap: np.ndarray
     return out
 
 
-def region_table(error: Mapping[str, np.ndarray], entropy: np.ndarray, shadowed: np.ndarray) -> pd.DataFrame:
-    """Mean per-texel error of each method and mean entropy, inside and outside a region.
+def region_table(error: Mapping[str, np.ndarray], uncertainty: Mapping[str, np.ndarray],
+                 shadowed: np.ndarray) -> pd.DataFrame:
+    """Mean per-texel error of each method and mean of each uncertainty map, inside and outside a region.
 
     Parameters
     ----------
     error : mapping
         Method -> per-texel squared parameter error, shape (T,).
-    entropy : ndarray, shape (T,)
-        Normalised entropy of the same texels.
+    uncertainty : mapping
+        Name -> uncertainty of the same texels, shape (T,): ``entropy`` (normalised), and
+        ``posterior_<method>`` (a method's expected squared parameter error under its posterior).
     shadowed : ndarray, shape (T,), bool
         The region (e.g. texels an unseen occluder shadows).
 
     Returns
     -------
     DataFrame
-        Rows ``shadowed`` and ``lit``; columns ``texels``, ``mean_entropy`` and
-        ``mse_<method>`` (NaN for an empty region).
+        Rows ``shadowed`` and ``lit``; columns ``texels``, ``mean_<name>`` per uncertainty map
+        and ``mse_<method>`` (NaN for an empty region).
     """
     shadowed = np.asarray(shadowed, dtype=bool)
     rows = {}
     for name, mask in (("shadowed", shadowed), ("lit", ~shadowed)):
-        row = {"texels": int(mask.sum()), "mean_entropy": float(entropy[mask].mean()) if mask.any() else np.nan}
+        row = {"texels": int(mask.sum())}
+        row |= {f"mean_{u}": float(v[mask].mean()) if mask.any() else np.nan for u, v in uncertainty.items()}
         row |= {f"mse_{m}": float(e[mask].mean()) if mask.any() else np.nan for m, e in error.items()}
         rows[name] = row
     return pd.DataFrame.from_dict(rows, orient="index")
@@ -173,7 +176,8 @@ def stress_table(df: pd.DataFrame, stress: Mapping[str, tuple[str, str]],
     Parameters
     ----------
     df : DataFrame
-        Tidy metrics, with ``mean_entropy`` rows (method ``''``) per capture.
+        Tidy metrics, with ``mean_entropy`` rows (method ``''``) per capture and
+        ``mean_posterior_error`` rows of the methods that have a posterior.
     stress : mapping
         Capture object name -> (env, what it breaks), in display order.
     references : mapping
@@ -186,7 +190,8 @@ def stress_table(df: pd.DataFrame, stress: Mapping[str, tuple[str, str]],
     -------
     DataFrame
         One row per stress capture and method: parameter MSE, BRDF log-RMSE, relighting
-        PSNR-H and the capture's mean entropy, each as ``stress (reference)``.
+        PSNR-H, the method's mean posterior error and the capture's mean entropy, each as
+        ``stress (reference)``.
     """
     rows = []
     for name, (env, what) in stress.items():
@@ -195,7 +200,9 @@ def stress_table(df: pd.DataFrame, stress: Mapping[str, tuple[str, str]],
             row = {"Capture": f"{name} / {env}", "Breaks": what,
                    "Compared with": MISSING if ref is None else f"{ref[0]} / {ref[1]}", "Method": method_label(method)}
             for metric, label, digits, who in (("mse_average", "MSE", 4, method), ("brdf_log_rmse", "BRDF log-RMSE", 3, method),
-                                               ("psnr_h", "PSNR-H", 2, method), ("mean_entropy", "Mean entropy", 3, "")):
+                                               ("psnr_h", "PSNR-H", 2, method),
+                                               ("mean_posterior_error", "Mean posterior error", 4, method),
+                                               ("mean_entropy", "Mean entropy", 3, "")):
                 ours = _cell(df, name, env, poses, who, metric, digits)
                 theirs = MISSING if ref is None else _cell(df, *ref, poses, who, metric, digits)
                 row[label] = f"{ours} ({theirs})"
