@@ -139,6 +139,8 @@ SWEEP = {
     "config, light per texel": config_setting(light_table=TableSize(rows=0, rank=4)),
     "config, gaussian lobe": config_setting(lobe="gaussian"),
     "config, lambert": config_setting(diffuse="lambert"),
+    **{f"config, lm, tv {w:g}": config_setting(solver="lm", tv_weight=w) for w in (0.05, 0.1, 0.2, 0.4)},
+    "config, lm 24 sweeps, tv 0.2": config_setting(solver="lm", tv_weight=0.2, sweeps=24, sweep_refit_every=6),
 }
 
 
