@@ -402,11 +402,14 @@ def test_view_selection_ranks_candidates_and_compares_strategies(run):
     assert np.allclose(np.diff(ranked.expected_mean_entropy[:3]), -ranked.expected_decrease[1:3], atol=1e-5)
     cameras = cameras_from_json(read_json(run / "results/view_selection/sphere/studio/gt/candidates.json"))
     assert sorted(cameras.names) == sorted(ranked.view)
-    # the sweep at 2 and 3 of the 4 training views: one entropy-guided, one evenly spread, 2 random subsets each
+    # the sweep at 2 and 3 of the 4 training views: one entropy-guided, one evenly spread, 2 random subsets
+    # each, and at 3 one posterior-guided (the pilot's 2 evenly spread views and one more)
     table = pd.read_csv(run / "results/tables/view_selection.tsv", sep="\t")
-    counts = table.groupby(["views", "strategy"]).size().unstack()
+    counts = table.groupby(["views", "strategy"]).size().unstack().fillna(0).astype(int)
     assert list(counts.index) == [2, 3] and counts.to_dict("list") == {"entropy": [1, 1], "even": [1, 1],
-                                                                       "random": [2, 2]}
+                                                                       "posterior": [0, 1], "random": [2, 2]}
+    pilot = set(table[(table.strategy == "even") & (table.views == 2)].view_names.iloc[0].split())
+    assert pilot < set(table[table.strategy == "posterior"].view_names.iloc[0].split())
     assert table.mse_average.between(0, 1).all() and table.mean_entropy.between(0, 1).all()
     assert all(len(names.split()) == k for names, k in zip(table.view_names, table.views))
     assert read_png(run / "results/figures/view_selection.png").shape[1] > 300

@@ -4,7 +4,7 @@
 # none when the list is empty).
 VIEW_SELECTION_CAPTURES = BENCHMARK_CAPTURES[:1]
 VIEW_SELECTION_SWEEP_CAPTURES = BENCHMARK_CAPTURES if config["view_selection"]["sweep_counts"] else []
-VIEW_SELECTION_SWEEP_KEYS = ["texels", "posterior_min_views", "sweep_counts"]
+VIEW_SELECTION_SWEEP_KEYS = ["texels", "posterior_min_views", "sweep_counts", "pilot_views"]
 
 
 # The ranked candidates of the first synthetic capture and, with view_selection.sweep_counts,

@@ -1,5 +1,5 @@
 """Rule view_selection_sweep: freq's parameter MSE with k training views chosen by expected
-entropy, at random and evenly spread, at equal k."""
+entropy, by the error a pilot fit's posterior expects, at random and evenly spread, at equal k."""
 
 import time
 from pathlib import Path
@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf, sample_texels
+from freqbrdf.artefacts import Observations, Svbrdf, read_observations, read_svbrdf, sample_texels
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import atomic_path, read_exr, read_json
@@ -23,10 +23,31 @@ from freqbrdf.studies.view_selection import (
     set_threads,
 )
 from freqbrdf.studies.candidates import capture_views
+from freqbrdf.studies.posterior_selection import capture_information, greedy_posterior_selection
 from freqbrdf.studies.views import estimate_subset, view_subsets
 
 
-def subsets(smk, obs, envmap, texels, directions, k, log):
+def posterior_views(smk, obs, envmap, texels, directions, k, freq, log):
+    """k views: a pilot fit of ``freq`` (its settings, light and irradiance) on ``pilot_views`` evenly
+    spread ones, then the views that most lower the mean error its posterior expects on the sampled
+    texels (their images unread)."""
+    p = smk.params
+    settings, light, e = freq
+    pilot = farthest_views(directions, p.settings["pilot_views"])
+    _, _, estimate = estimate_subset(obs, pilot, envmap, p.band_limit, p.sh, p.spectrum, settings, light, e,
+                                     smk.threads)
+    sample = Observations(obs.texels.subset(texels), *(np.asarray(a)[texels] for a in
+                                                        (obs.radiance, obs.weight, obs.wo_local, obs.incoming)),
+                          obs.meta)
+    information = capture_information(sample, pilot, {name: v[texels] for name, v in estimate.items()}, light,
+                                      e[texels], settings, min_pilot_views=p.settings["posterior_min_views"])
+    picks, errors = greedy_posterior_selection(information, k, chosen=pilot.tolist())
+    log.info("k = %d: posterior-guided views %s after the pilot's %s, mean expected error %.4f -> %.4f", k, picks,
+             pilot.tolist(), errors[0], errors[-1])
+    return np.sort(np.concatenate([pilot, picks]).astype(np.int64))
+
+
+def subsets(smk, obs, envmap, texels, directions, k, freq, log):
     """The k views of each strategy: (strategy, repetition) -> (view indices, seconds to choose)."""
     p = smk.params
     a_prime = band_limit_parameter(k, p.band_limit)
@@ -39,6 +60,10 @@ def subsets(smk, obs, envmap, texels, directions, k, log):
              rankings[-1].current, out[("entropy", 0)][1])
     start = time.perf_counter()
     out[("even", 0)] = (farthest_views(directions, k), time.perf_counter() - start)
+    if p.settings["pilot_views"] < k < len(directions):
+        start = time.perf_counter()
+        out[("posterior", 0)] = (posterior_views(smk, obs, envmap, texels, directions, k, freq, log),
+                                 time.perf_counter() - start)
     for i, seed in enumerate(p.seeds):
         start = time.perf_counter()
         out[("random", i)] = (view_subsets(len(directions), [k], seed)[k], time.perf_counter() - start)
@@ -65,7 +90,8 @@ def main(smk, log):
     n_views, scored = len(directions), obs.texels.texel[seen]
     done, rows = {}, []
     for k in sorted({min(int(c), n_views) for c in p.settings["sweep_counts"]}):
-        for (strategy, rep), (views, choose_s) in subsets(smk, obs, envmap, texels, directions, k, log).items():
+        freq = (settings, light, e)
+        for (strategy, rep), (views, choose_s) in subsets(smk, obs, envmap, texels, directions, k, freq, log).items():
             key = tuple(sorted(views.tolist()))
             if key not in done:  # e.g. k = every view: one estimate for every strategy
                 start = time.perf_counter()

@@ -411,7 +411,8 @@ def entropy_agreement_figure(path: str | os.PathLike, entropy: Mapping[str, np.n
 
 
 VIEW_SELECTION_STYLES = {"entropy": ("tab:red", "o", "entropy-guided"), "random": ("tab:grey", "s", "random"),
-                         "even": ("tab:blue", "^", "evenly spread")}
+                         "even": ("tab:blue", "^", "evenly spread"),
+                         "posterior": ("tab:green", "D", "posterior-guided")}
 
 
 def view_selection_figure(path: str | os.PathLike, table: pd.DataFrame) -> None:

@@ -23,7 +23,8 @@ import numpy as np
 
 from freqbrdf.estimate.optimise.settings import N_PARAMS
 
-__all__ = ["PRIOR_PRECISION", "prior_variance", "laplace_variance", "expected_error"]
+__all__ = ["PRIOR_PRECISION", "prior_variance", "model_jacobian", "residual_variance", "laplace_variance",
+           "expected_error"]
 
 PRIOR_PRECISION = 12.0  # 1 / variance of a uniform on [0, 1]
 _STEP = 1e-4  # finite-difference step of the Jacobian (parameters in [0, 1])
@@ -34,21 +35,54 @@ def prior_variance(variance_scale: float = 1.0) -> float:
     return variance_scale / PRIOR_PRECISION
 
 
+def model_jacobian(radiance, xp: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The model radiance of every pair and its Jacobian in the texel's parameters, by finite differences.
+
+    Parameters
+    ----------
+    radiance : callable
+        ``radiance(xp) -> (N, 3)``: the model radiance of the N pairs at internal-order
+        parameters ``xp`` (`freqbrdf.estimate.optimise.model.ForwardModel.radiance`).
+    xp : numpy.ndarray
+        Shape ``(T, 5)``, parameters in internal order (observed texels first).
+    start : numpy.ndarray
+        Shape ``(T_obs + 1,)``: first pair of each observed texel.
+
+    Returns
+    -------
+    model : numpy.ndarray
+        Shape ``(N, 3)``.
+    jacobian : numpy.ndarray
+        Shape ``(N, 3, 5)``: d radiance / d (base R, G, B, roughness, metallic) of the pair's texel.
+    """
+    slot = np.repeat(np.arange(start.shape[0] - 1), np.diff(start))
+    model = radiance(xp)
+    jacobian = np.empty(model.shape + (N_PARAMS,))
+    for q in range(N_PARAMS):
+        moved = xp.copy()
+        step = np.where(moved[:, q] > 0.5, -_STEP, _STEP)  # inwards, so the step stays in [0, 1]
+        moved[:, q] += step
+        jacobian[..., q] = (radiance(moved) - model) / step[slot][:, None]
+    return model, jacobian
+
+
+def residual_variance(residual: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """Per observed texel, the variance its fit leaves: ``|r|^2 / (3 n - 5)`` over its n pairs
+    (residuals ``(N, 3)``; at least 1 degree of freedom, and at least 1e-12)."""
+    dof = np.maximum(3 * np.diff(start) - N_PARAMS, 1)
+    return np.maximum(np.add.reduceat((np.asarray(residual) ** 2).sum(axis=1), start[:-1]) / dof, 1e-12)
+
+
 def laplace_variance(radiance, xp: np.ndarray, observed: np.ndarray, start: np.ndarray,
                      variance_scale: float = 1.0) -> np.ndarray:
     """Posterior variance of every parameter of the observed texels (module docstring).
 
     Parameters
     ----------
-    radiance : callable
-        ``radiance(xp) -> (N, 3)``: the model radiance of the N observed pairs at internal-order
-        parameters ``xp`` (`freqbrdf.estimate.optimise.model.ForwardModel.radiance`).
-    xp : numpy.ndarray
-        Shape ``(T, 5)``, the estimate in internal order (observed texels first).
+    radiance, xp, start
+        As for `model_jacobian`; ``radiance`` over the observed pairs.
     observed : numpy.ndarray
         Shape ``(N, 3)``: the observed radiance of the pairs.
-    start : numpy.ndarray
-        Shape ``(T_obs + 1,)``: first pair of each observed texel.
     variance_scale : float
         Factor on every variance (> 0).
 
@@ -59,19 +93,9 @@ def laplace_variance(radiance, xp: np.ndarray, observed: np.ndarray, start: np.n
     """
     if not (np.isfinite(variance_scale) and variance_scale > 0):
         raise ValueError(f"variance_scale must be a finite number > 0, got {variance_scale!r}")
-    n_obs = start.shape[0] - 1
-    slot = np.repeat(np.arange(n_obs), np.diff(start))
-    model = radiance(xp)
-    jacobian = np.empty(model.shape + (N_PARAMS,))
-    for q in range(N_PARAMS):
-        moved = xp.copy()
-        step = np.where(moved[:, q] > 0.5, -_STEP, _STEP)  # inwards, so the step stays in [0, 1]
-        moved[:, q] += step
-        jacobian[..., q] = (radiance(moved) - model) / step[slot][:, None]
-    residual = model - np.asarray(observed, dtype=np.float64)
+    model, jacobian = model_jacobian(radiance, xp, start)
+    s2 = residual_variance(model - np.asarray(observed, dtype=np.float64), start)
     curvature = np.add.reduceat(np.einsum("ncq,ncr->nqr", jacobian, jacobian), start[:-1])  # (T_obs, 5, 5)
-    dof = np.maximum(3 * np.diff(start) - N_PARAMS, 1)
-    s2 = np.maximum(np.add.reduceat((residual**2).sum(axis=1), start[:-1]) / dof, 1e-12)
     precision = curvature / s2[:, None, None] + PRIOR_PRECISION * np.eye(N_PARAMS)
     return variance_scale * np.diagonal(np.linalg.inv(precision), axis1=1, axis2=2).copy()
 
