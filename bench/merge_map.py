@@ -6,7 +6,8 @@ estimates of all the object's captures, per texel from the capture lowest in:
 
 - ``entropy``: the spectrum entropy (the paper's choice);
 - ``posterior``: the expected squared parameter error under the fit's posterior
-  (`freqbrdf.estimate.merge.posterior_score`, from the ``std_*.exr`` of each estimate);
+  (`freqbrdf.estimate.optimise.posterior.expected_error_atlas`, from the ``std_*.exr`` of each
+  estimate);
 - ``views``: minus the number of views that observe the texel (a trivial baseline);
 - ``oracle``: the true per-texel error (a bound no map can pass);
 
@@ -29,7 +30,8 @@ import yaml
 
 from freqbrdf import layout
 from freqbrdf.artefacts import read_entropy, read_observations, read_posterior_std, read_svbrdf
-from freqbrdf.estimate.merge import lowest_merge, posterior_score
+from freqbrdf.estimate.merge import lowest_merge
+from freqbrdf.estimate.optimise.posterior import expected_error_atlas
 from freqbrdf.report.metrics import parameter_error_map, parameter_mse
 from freqbrdf.report.sparsification import baseline_maps
 from freqbrdf.sphere.brdf import TEXTURES
@@ -47,7 +49,7 @@ def capture_maps(results: Path, obj: str, env: str, truth, method: str) -> dict:
     views[texels] = baseline_maps(obs)["views"]
     return {"estimate": estimate, "texels": texels,
             "entropy": read_entropy(layout.located(layout.ENTROPY, results, **where)).atlas,
-            "posterior": posterior_score(read_posterior_std(estimate_dir)),
+            "posterior": expected_error_atlas(read_posterior_std(estimate_dir)),
             "views": views.reshape(shape),
             "oracle": parameter_error_map(truth, estimate)}
 

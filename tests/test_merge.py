@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from freqbrdf.estimate.merge import lowest_merge, posterior_score
+from freqbrdf.estimate.merge import lowest_merge
+from freqbrdf.estimate.optimise.posterior import expected_error_atlas
 
 
 def constant_svbrdf(value: float, r: int = 4) -> dict[str, np.ndarray]:
@@ -50,20 +51,11 @@ def test_mismatched_inputs_are_named():
         lowest_merge([constant_svbrdf(0.1)], [np.zeros((8, 8))])
 
 
-def test_posterior_score_is_the_mean_variance_of_the_three_parameter_groups():
-    """Base colour's channel variances averaged, then averaged with roughness's and metallic's
-    (as the parameter error map averages squared errors): an analytic value per texel."""
-    std = {"base_color": np.stack([np.full((2, 3), 0.1), np.full((2, 3), 0.2), np.full((2, 3), 0.3)], axis=-1),
-           "roughness": np.full((2, 3), 0.4), "metallic": np.arange(6.0).reshape(2, 3) / 10}
-    expected = ((0.01 + 0.04 + 0.09) / 3 + 0.16 + std["metallic"] ** 2) / 3
-    np.testing.assert_allclose(posterior_score(std), expected)
-
-
 def test_posterior_merge_takes_the_better_determined_capture():
     """Two captures, each with small deviations on its own half: the merge takes each half from it."""
     sure, unsure = 0.01, 0.3
     halves = np.where(np.arange(4) < 2, sure, unsure)[None, :].repeat(4, axis=0)
     stds = [{"base_color": np.repeat(h[..., None], 3, axis=-1), "roughness": h, "metallic": h}
             for h in (halves, sure + unsure - halves)]
-    _, choice = lowest_merge([constant_svbrdf(0.1), constant_svbrdf(0.9)], [posterior_score(s) for s in stds])
+    _, choice = lowest_merge([constant_svbrdf(0.1), constant_svbrdf(0.9)], [expected_error_atlas(s) for s in stds])
     np.testing.assert_array_equal(choice, np.where(np.arange(4) < 2, 0, 1)[None, :].repeat(4, axis=0))

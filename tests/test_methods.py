@@ -51,10 +51,15 @@ def test_registry_rejects_inconsistent_entries():
         methods.Method("x", "X", "optimise_svbrdf", paper_rows={"table9": "X"})
     with pytest.raises(ValueError, match="not registered"):
         methods.build_registry(methods.Method("x", "X", "mitsuba", start="y"))
-    with pytest.raises(ValueError, match="merged_by must be one of"):
+    with pytest.raises(ValueError, match="needs a start and merged_by one of .* merged_by None"):
         methods.Method("x", "X", "merge_svbrdf", start="y")
-    with pytest.raises(ValueError, match="merged_by must be one of"):
-        methods.Method("x", "X", "optimise_svbrdf", merged_by="entropy")
+    with pytest.raises(ValueError, match="merged_by 'bogus'"):
+        methods.Method("x", "X", "merge_svbrdf", start="y", merged_by="bogus")
+    with pytest.raises(ValueError, match="got start None"):
+        methods.Method("x", "X", "merge_svbrdf", merged_by="posterior")
+    for bad in ("entropy", "bogus"):
+        with pytest.raises(ValueError, match=f"merged_by is for rule merge_svbrdf only, got '{bad}'"):
+            methods.Method("x", "X", "optimise_svbrdf", merged_by=bad)
     with pytest.raises(ValueError, match="merges by the posterior, which 'm' does not write"):
         methods.build_registry(methods.Method("m", "M", "mitsuba"),
                                methods.Method("x", "X", "merge_svbrdf", start="m", merged_by="posterior"))

@@ -1,5 +1,6 @@
 """End to end: the whole DAG on the tiny preset, caching, and failures that leave nothing behind."""
 
+import json
 import re
 import subprocess
 from pathlib import Path
@@ -386,10 +387,11 @@ def test_tables_and_claims_follow_the_metrics(run):
     full = metrics[(metrics.object == "sphere") & (metrics.method == "freq") & (metrics.metric == "mse_average")]
     # with all views the sweep runs the pipeline's own freq on the same observations (light drawn again)
     assert sweep.mse_average.iloc[-1] == pytest.approx(full.value.iloc[0], rel=0.05)
-    # the merges: one capture only, so each is its start method's estimate
-    for merged, start in (("mitsuba_merged", "mitsuba"), ("freq_merged", "freq")):
+    # the merges: one capture only, so each is its start method's estimate, taken by its own map
+    for merged, start, by in (("mitsuba_merged", "mitsuba", "entropy"), ("freq_merged", "freq", "posterior")):
         mse = metrics[(metrics.object == "sphere") & (metrics.metric == "mse_average")].set_index("method").value
         assert mse[merged] == pytest.approx(mse[start], rel=1e-6)
+        assert read_json(run / f"results/estimates/sphere/studio/gt/{merged}/merge.json")["merged_by"] == by
 
 
 def test_view_selection_ranks_candidates_and_compares_strategies(run):
@@ -440,8 +442,13 @@ def test_gltf_files_environments_and_viewers_are_written_per_capture(repo, run):
             scene = read_glb(run / f"results/gltf/{capture}/gt/{method}.glb")
             assert [m.name for m in scene.materials] == [method]
         page = (run / f"results/viewer/{capture}/gt/viewer.html").read_text()
-        assert page.count('"overlay": true') == len(tiny_methods(repo))  # one panel per method
-        assert ('"name": "truth"' in page) == (capture == "sphere/studio")  # ground truth: synthetic only
+        data = json.loads(page.split('id="freqbrdf-data">', 1)[1].split("</script>", 1)[0])
+        # ground truth: synthetic only, without an overlay; each method its posterior's where it has one
+        names = [p["name"] for p in data["panels"]]
+        assert names == (["truth"] if capture == "sphere/studio" else []) + list(tiny_methods(repo))
+        own = {p["name"]: p["uncertainty"] for p in data["panels"]}
+        assert all(own[m] == (m if METHODS[m].rule == "optimise_svbrdf" else "entropy") for m in tiny_methods(repo))
+        assert set(data["overlays"]) == {"entropy"} | {m for m in tiny_methods(repo) if own[m] == m}
     for env in ("studio", "museum", "sunny", "overcast"):
         hdr, exr_env = read_hdr(run / f"results/envs/{env}.hdr"), read_exr(run / f"results/envs/{env}.exr")
         assert np.all(np.abs(hdr - exr_env) <= exr_env.max(axis=2, keepdims=True) / 256 + 1e-30)

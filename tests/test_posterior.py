@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from freqbrdf.estimate.optimise.posterior import PRIOR_PRECISION, expected_error, laplace_variance
+from freqbrdf.estimate.optimise.posterior import (PRIOR_PRECISION, expected_error, expected_error_atlas,
+                                                  laplace_variance, residual_variance)
 from freqbrdf.report.metrics import parameter_error_map
 
 
@@ -73,3 +74,20 @@ def test_the_expected_error_averages_as_the_error_map_does() -> None:
     estimate = {"base_color": std[:, :3].reshape(4, 4, 3), "roughness": std[:, 3].reshape(4, 4),
                 "metallic": std[:, 4].reshape(4, 4)}
     np.testing.assert_allclose(expected_error(variance), parameter_error_map(truth, estimate).ravel())
+
+
+def test_the_expected_error_atlas_is_the_mean_variance_of_the_three_parameter_groups() -> None:
+    """Base colour's channel variances averaged, then averaged with roughness's and metallic's
+    (as the parameter error map averages squared errors): an analytic value per texel."""
+    std = {"base_color": np.stack([np.full((2, 3), 0.1), np.full((2, 3), 0.2), np.full((2, 3), 0.3)], axis=-1),
+           "roughness": np.full((2, 3), 0.4), "metallic": np.arange(6.0).reshape(2, 3) / 10}
+    expected = ((0.01 + 0.04 + 0.09) / 3 + 0.16 + std["metallic"] ** 2) / 3
+    np.testing.assert_allclose(expected_error_atlas(std), expected)
+
+
+def test_the_residual_variance_divides_by_the_degrees_of_freedom_left() -> None:
+    """Two pairs of texel 0 (6 residuals, 1 degree of freedom left by 5 parameters), one of texel 2
+    (none left: counted as 1), none of texel 1 (no residual: the floor)."""
+    residual = np.array([[1.0, 2.0, 0.0], [0.0, 0.0, 2.0], [3.0, 0.0, 0.0]])
+    s2 = residual_variance(residual, np.array([0, 0, 2]), 3)
+    np.testing.assert_allclose(s2, [9.0, 1e-12, 9.0])

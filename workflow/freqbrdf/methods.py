@@ -28,7 +28,7 @@ PAPER_TABLES = ("table1", "table2", "table4", "table5", "table6")
 
 MERGE_MAPS = ("entropy", "posterior")
 """What a merge takes each texel by: the capture of lowest spectrum entropy (the paper's Table 6)
-or of lowest expected error under the fit's posterior (`freqbrdf.estimate.merge.posterior_score`;
+or of lowest expected error under the fit's posterior (`freqbrdf.estimate.optimise.posterior.expected_error_atlas`;
 only for estimates of ``optimise_svbrdf``, which write one)."""
 
 
@@ -81,9 +81,11 @@ class Method:
     def __post_init__(self) -> None:
         if self.rule not in ESTIMATOR_RULES:
             raise ValueError(f"method {self.name!r}: rule must be one of {ESTIMATOR_RULES}, got {self.rule!r}")
-        if (self.rule == "merge_svbrdf") != (self.merged_by in MERGE_MAPS):
-            raise ValueError(f"method {self.name!r}: merged_by must be one of {MERGE_MAPS} for rule merge_svbrdf "
-                             f"and None otherwise, got {self.merged_by!r}")
+        if self.rule == "merge_svbrdf" and (self.merged_by not in MERGE_MAPS or self.start is None):
+            raise ValueError(f"method {self.name!r} of rule merge_svbrdf needs a start and merged_by one of "
+                             f"{MERGE_MAPS}, got start {self.start!r}, merged_by {self.merged_by!r}")
+        if self.rule != "merge_svbrdf" and self.merged_by is not None:
+            raise ValueError(f"method {self.name!r}: merged_by is for rule merge_svbrdf only, got {self.merged_by!r}")
         unknown = set(self.paper_rows) - set(PAPER_TABLES)
         if unknown:
             raise ValueError(f"method {self.name!r}: paper_rows names unknown tables {sorted(unknown)}")

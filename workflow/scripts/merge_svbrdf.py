@@ -4,7 +4,8 @@ capture least uncertain there (paper Table 6), by the map the method names (`Met
 import numpy as np
 
 from freqbrdf.artefacts import read_entropy, read_posterior_std, read_svbrdf, write_svbrdf
-from freqbrdf.estimate.merge import lowest_merge, posterior_score
+from freqbrdf.estimate.merge import lowest_merge
+from freqbrdf.estimate.optimise.posterior import expected_error_atlas
 from freqbrdf.util.io import atomic_directory, write_json
 from freqbrdf.util.logs import run_script
 
@@ -12,7 +13,7 @@ from freqbrdf.util.logs import run_script
 def main(smk, log):
     estimates = [read_svbrdf(d) for d in smk.input.estimates]
     if smk.params.merged_by == "posterior":
-        scores = [posterior_score(read_posterior_std(d)) for d in smk.input.estimates]
+        scores = [expected_error_atlas(read_posterior_std(d)) for d in smk.input.estimates]
     else:
         scores = [read_entropy(d).atlas for d in smk.input.entropy]
     merged, choice = lowest_merge(estimates, scores)

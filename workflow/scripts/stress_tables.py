@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import read_entropy, read_observations, read_posterior_std, read_svbrdf
-from freqbrdf.estimate.merge import posterior_score
+from freqbrdf.estimate.optimise.posterior import expected_error_atlas
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.report.figures import stress_figure
@@ -32,7 +32,7 @@ def capture_arrays(smk, index):
     truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth[k * index : k * (index + 1)])))
     estimates = dict(zip(p.methods, smk.input.estimates[n * index : n * (index + 1)]))
     error = {m: parameter_error_map(truth, read_svbrdf(d)).ravel()[texels] for m, d in estimates.items()}
-    uncertainty |= {f"posterior_{m}": posterior_score(read_posterior_std(d)).ravel()[texels]
+    uncertainty |= {f"posterior_{m}": expected_error_atlas(read_posterior_std(d)).ravel()[texels]
                     for m, d in estimates.items() if METHODS[m].rule == "optimise_svbrdf"}
     return obs, texels, uncertainty, error
 

@@ -27,12 +27,14 @@ from freqbrdf.studies.posterior_selection import capture_information, greedy_pos
 from freqbrdf.studies.views import estimate_subset, view_subsets
 
 
-def posterior_views(smk, obs, envmap, texels, directions, k, freq, log):
-    """k views: a pilot fit of ``freq`` (its settings, light and irradiance) on ``pilot_views`` evenly
-    spread ones, then the views that most lower the mean error its posterior expects on the sampled
-    texels (their images unread)."""
+def posterior_order(smk, obs, envmap, texels, directions, k, fit_setup, log):
+    """The pilot's views (``pilot_views`` evenly spread) and, in the order chosen, the ``k`` minus
+    that many views that most lower the mean error the pilot fit's posterior expects on the sampled
+    texels, their images unread; with seconds taken. Greedy picks are nested, so the first k' of
+    them are the choice at any k' <= k."""
     p = smk.params
-    settings, light, e = freq
+    settings, light, e = fit_setup
+    start = time.perf_counter()
     pilot = farthest_views(directions, p.settings["pilot_views"])
     _, _, estimate = estimate_subset(obs, pilot, envmap, p.band_limit, p.sh, p.spectrum, settings, light, e,
                                      smk.threads)
@@ -40,15 +42,17 @@ def posterior_views(smk, obs, envmap, texels, directions, k, freq, log):
                                                         (obs.radiance, obs.weight, obs.wo_local, obs.incoming)),
                           obs.meta)
     information = capture_information(sample, pilot, {name: v[texels] for name, v in estimate.items()}, light,
-                                      e[texels], settings, min_pilot_views=p.settings["posterior_min_views"])
+                                      e[texels], settings)
     picks, errors = greedy_posterior_selection(information, k, chosen=pilot.tolist())
-    log.info("k = %d: posterior-guided views %s after the pilot's %s, mean expected error %.4f -> %.4f", k, picks,
-             pilot.tolist(), errors[0], errors[-1])
-    return np.sort(np.concatenate([pilot, picks]).astype(np.int64))
+    seconds = time.perf_counter() - start
+    log.info("posterior-guided views %s after the pilot's %s, mean expected error %.4f -> %.4f (%.1f s)", picks,
+             pilot.tolist(), errors[0], errors[-1], seconds)
+    return pilot, picks, seconds
 
 
-def subsets(smk, obs, envmap, texels, directions, k, freq, log):
-    """The k views of each strategy: (strategy, repetition) -> (view indices, seconds to choose)."""
+def subsets(smk, obs, envmap, texels, directions, k, posterior, log):
+    """The k views of each strategy: (strategy, repetition) -> (view indices, seconds to choose);
+    ``posterior``: `posterior_order`'s result, or None."""
     p = smk.params
     a_prime = band_limit_parameter(k, p.band_limit)
     start = time.perf_counter()
@@ -60,10 +64,9 @@ def subsets(smk, obs, envmap, texels, directions, k, freq, log):
              rankings[-1].current, out[("entropy", 0)][1])
     start = time.perf_counter()
     out[("even", 0)] = (farthest_views(directions, k), time.perf_counter() - start)
-    if p.settings["pilot_views"] < k < len(directions):
-        start = time.perf_counter()
-        out[("posterior", 0)] = (posterior_views(smk, obs, envmap, texels, directions, k, freq, log),
-                                 time.perf_counter() - start)
+    if posterior is not None and len(posterior[0]) < k < len(directions):
+        pilot, order, seconds = posterior
+        out[("posterior", 0)] = (np.sort(np.concatenate([pilot, order[: k - len(pilot)]])), seconds)
     for i, seed in enumerate(p.seeds):
         start = time.perf_counter()
         out[("random", i)] = (view_subsets(len(directions), [k], seed)[k], time.perf_counter() - start)
@@ -89,9 +92,13 @@ def main(smk, log):
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     n_views, scored = len(directions), obs.texels.texel[seen]
     done, rows = {}, []
-    for k in sorted({min(int(c), n_views) for c in p.settings["sweep_counts"]}):
-        freq = (settings, light, e)
-        for (strategy, rep), (views, choose_s) in subsets(smk, obs, envmap, texels, directions, k, freq, log).items():
+    counts = sorted({min(int(c), n_views) for c in p.settings["sweep_counts"]})
+    guided = [k for k in counts if p.settings["pilot_views"] < k < n_views]
+    posterior = (posterior_order(smk, obs, envmap, texels, directions, max(guided), (settings, light, e), log)
+                 if guided else None)
+    for k in counts:
+        for (strategy, rep), (views, choose_s) in subsets(smk, obs, envmap, texels, directions, k, posterior,
+                                                          log).items():
             key = tuple(sorted(views.tolist()))
             if key not in done:  # e.g. k = every view: one estimate for every strategy
                 start = time.perf_counter()

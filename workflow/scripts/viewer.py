@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from freqbrdf.artefacts import read_entropy, read_posterior_std
-from freqbrdf.estimate.merge import posterior_score
+from freqbrdf.estimate.optimise.posterior import expected_error_atlas
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.export.gltf import read_glb
 from freqbrdf.util.io import atomic_path, read_json
@@ -33,7 +33,7 @@ def main(smk, log):
     credits = asset_credits([read_json(path) for path in smk.input.sources])
     overlays = {ENTROPY: overlay_image(read_entropy(smk.input.entropy).atlas)}
     for method, estimate in zip(smk.params.posteriors, smk.input.posteriors, strict=True):
-        overlays[method] = posterior_overlay(posterior_score(read_posterior_std(estimate)))
+        overlays[method] = posterior_overlay(expected_error_atlas(read_posterior_std(estimate)))
     html = viewer_html(smk.params.title, scenes[0].mesh, [s.materials[0] for s in scenes], panels, envs,
                        overlays, cameras.centres[0], fov_deg, credits=credits)
     with atomic_path(smk.output[0]) as tmp:

@@ -8,7 +8,8 @@ paper merges Mitsuba's optimisation results (its Table 6 "Average" row equals
 Mitsuba's Table 2 average); the registry has a merge of ``mitsuba`` and one of
 ``freq`` (:data:`freqbrdf.methods.METHODS`), each naming the map it merges by:
 the entropy, or for estimates that carry one, their fit's posterior
-(`posterior_score`), which needs no ground truth either.
+(`freqbrdf.estimate.optimise.posterior.expected_error_atlas`), which needs no
+ground truth either.
 """
 
 from __future__ import annotations
@@ -18,30 +19,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from freqbrdf.artefacts import Svbrdf
-from freqbrdf.estimate.optimise.posterior import expected_error
 from freqbrdf.sphere.brdf import TEXTURES
 
-__all__ = ["lowest_merge", "posterior_score"]
-
-
-def posterior_score(std: Mapping[str, np.ndarray]) -> np.ndarray:
-    """The expected squared parameter error of every texel under an estimate's posterior.
-
-    Parameters
-    ----------
-    std : mapping
-        Posterior standard deviations as `freqbrdf.artefacts.read_posterior_std` returns
-        them: ``base_color`` (R, R, 3), ``roughness`` and ``metallic`` (R, R); the prior's
-        where no view observes the texel, so those texels score worst.
-
-    Returns
-    -------
-    ndarray, shape (R, R), float64
-    """
-    shape = np.shape(std["roughness"])
-    variance = np.column_stack([np.asarray(std[g], np.float64).reshape(shape[0] * shape[1], -1) ** 2
-                                for g in TEXTURES])
-    return expected_error(variance).reshape(shape)
+__all__ = ["lowest_merge"]
 
 
 def lowest_merge(
@@ -56,7 +36,8 @@ def lowest_merge(
         object from E captures (the same atlas).
     scores : sequence of E ndarray, shape (R, R)
         Each capture's uncertainty atlas, larger = less sure: the entropy (1 where
-        unobserved or outside the atlas) or `posterior_score`.
+        unobserved or outside the atlas) or
+        `freqbrdf.estimate.optimise.posterior.expected_error_atlas`.
 
     Returns
     -------

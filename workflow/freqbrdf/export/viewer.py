@@ -91,7 +91,7 @@ def overlay_image(atlas: np.ndarray) -> np.ndarray:
 
 def posterior_overlay(score: np.ndarray) -> np.ndarray:
     """`overlay_image` of an estimate's expected squared parameter error (R, R)
-    (`freqbrdf.estimate.merge.posterior_score`), as RMS error over `POSTERIOR_RMS_MAX`."""
+    (`freqbrdf.estimate.optimise.posterior.expected_error_atlas`), as RMS error over `POSTERIOR_RMS_MAX`."""
     return overlay_image(np.sqrt(np.maximum(np.asarray(score, dtype=np.float64), 0.0)) / POSTERIOR_RMS_MAX)
 
 

@@ -25,7 +25,7 @@ import numpy as np
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature
 from freqbrdf.estimate.optimise.model import ForwardModel
-from freqbrdf.estimate.optimise.posterior import PRIOR_PRECISION, expected_error, model_jacobian
+from freqbrdf.estimate.optimise.posterior import PRIOR_PRECISION, expected_error, model_jacobian, residual_variance
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params
 from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings
 from freqbrdf.util.validation import check_int, check_shape
@@ -58,9 +58,15 @@ def view_information(jacobian: np.ndarray, slot: np.ndarray, view: np.ndarray, s
     check_shape(jacobian, "jacobian", (None, 3, N_PARAMS))
     slot, view = np.asarray(slot, dtype=np.int64), np.asarray(view, dtype=np.int64)
     s2 = np.asarray(s2, dtype=np.float64)
-    if not np.all(s2 > 0):
-        raise ValueError("view_information: every residual variance must be > 0")
     n_views = check_int(n_views, "n_views", 1)
+    check_shape(slot, "slot", (len(jacobian),))
+    check_shape(view, "view", (len(jacobian),))
+    bad = np.flatnonzero(~(s2 > 0))
+    if bad.size:
+        raise ValueError(f"view_information: residual variance {float(s2[bad[0]])!r} of texel {bad[0]}; each must be > 0")
+    if slot.size and not (0 <= slot.min() and slot.max() < len(s2) and 0 <= view.min() and view.max() < n_views):
+        raise ValueError(f"view_information: pairs name texels {slot.min()}..{slot.max()} of {len(s2)} and views "
+                         f"{view.min()}..{view.max()} of {n_views}")
     out = np.zeros((len(s2) * n_views, N_PARAMS, N_PARAMS))
     np.add.at(out, slot * n_views + view, np.einsum("ncq,ncr->nqr", jacobian, jacobian) / s2[slot, None, None])
     return out.reshape(len(s2), n_views, N_PARAMS, N_PARAMS)
@@ -121,7 +127,8 @@ def capture_information(obs: Observations, pilot_views: Sequence[int], pilot: Ma
     ----------
     obs : Observations
         T texels x V views (in practice a sample of the capture's texels): the geometry of
-        every view, the radiance of the pilot views only is read.
+        every view; the radiance of the pilot views only is read (the others' is set to 0
+        before anything is computed).
     pilot_views : sequence of int
         The views the pilot estimate was fitted on.
     pilot : mapping
@@ -130,7 +137,8 @@ def capture_information(obs: Observations, pilot_views: Sequence[int], pilot: Ma
         The light (`freqbrdf.estimate.optimise.model.estimate_light`), the texels' irradiance
         (T, 3), the settings and the method (of rule ``optimise_svbrdf``) the pilot was fitted with.
     min_pilot_views : int
-        A texel that fewer pilot views see takes the median residual variance of the others.
+        A texel that fewer pilot views see takes the residual variance pooled over every pilot
+        pair (2: the fewest whose 6 residuals leave a degree of freedom to 5 parameters).
 
     Returns
     -------
@@ -138,6 +146,11 @@ def capture_information(obs: Observations, pilot_views: Sequence[int], pilot: Ma
         Shape ``(T, V, 5, 5)``; zero for texels no view sees.
     """
     n_texels, n_views = np.shape(obs.weight)
+    pilot_views = np.asarray(pilot_views, dtype=np.int64)
+    unread = np.setdiff1d(np.arange(n_views), pilot_views)
+    radiance = np.array(obs.radiance)
+    radiance[:, unread] = 0.0  # the views not taken: their images are not known yet
+    obs = Observations(obs.texels, radiance, obs.weight, obs.wo_local, obs.incoming, obs.meta)
     problem = build_problem(obs, irradiance, settings.dtype)
     model = ForwardModel.of(problem, light, method, settings)
     xp = pack_params(pilot, n_texels)[problem.perm]  # checks the shapes
@@ -145,16 +158,17 @@ def capture_information(obs: Observations, pilot_views: Sequence[int], pilot: Ma
     roughness = np.empty(n_texels)
     roughness[problem.perm] = xp[:, 3]
     terms = model.light_terms(roughness, settings.workers)
-    radiance, jacobian = model_jacobian(lambda z: model.radiance(z, terms), xp, problem.start)
+    model_radiance, jacobian = model_jacobian(lambda z: model.radiance(z, terms), xp, problem.start)
     slot, view = problem.pair_slot, problem.pair_view
-    known = np.isin(view, np.asarray(pilot_views, dtype=np.int64))
+    known = np.isin(view, pilot_views)
     n_obs = len(problem.observed)
-    squares = np.bincount(slot[known], ((radiance[known] - problem.radiance[known]) ** 2).sum(axis=1), n_obs)
-    seen = np.bincount(slot[known], minlength=n_obs)
-    enough = seen >= max(min_pilot_views, 1)
-    s2 = squares / np.maximum(3 * seen - N_PARAMS, 1)
-    fallback = float(np.median(s2[enough])) if enough.any() else 1.0
-    s2 = np.where(enough, np.maximum(s2, 1e-12), fallback)
+    residual = model_radiance[known] - problem.radiance[known]
+    pairs = np.bincount(slot[known], minlength=n_obs)
+    if not pairs.any():
+        raise ValueError(f"capture_information: no texel is seen by the pilot views {pilot_views.tolist()}")
+    pooled = float((residual**2).sum() / max(3 * pairs.sum() - N_PARAMS * np.count_nonzero(pairs), 1))
+    s2 = np.where(pairs >= max(min_pilot_views, 1), residual_variance(residual, slot[known], n_obs),
+                  max(pooled, 1e-12))
     out = np.zeros((n_texels, n_views, N_PARAMS, N_PARAMS))
     out[problem.observed] = view_information(jacobian, slot, view, s2, n_views)
     return out

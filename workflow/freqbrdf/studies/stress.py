@@ -176,8 +176,8 @@ def stress_table(df: pd.DataFrame, stress: Mapping[str, tuple[str, str]],
     Parameters
     ----------
     df : DataFrame
-        Tidy metrics, with ``mean_entropy`` rows (method ``''``) per capture and
-        ``mean_posterior_error`` rows of the methods that have a posterior.
+        Tidy metrics, with ``mean_entropy`` rows (method ``''``) per capture and the
+        ``mean_posterior_error`` rows metrics.csv has (``freq``'s).
     stress : mapping
         Capture object name -> (env, what it breaks), in display order.
     references : mapping

@@ -19,12 +19,15 @@ at refits).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from freqbrdf.estimate.optimise.settings import N_PARAMS
+from freqbrdf.sphere.brdf import TEXTURES
 
 __all__ = ["PRIOR_PRECISION", "prior_variance", "model_jacobian", "residual_variance", "laplace_variance",
-           "expected_error"]
+           "expected_error", "expected_error_atlas"]
 
 PRIOR_PRECISION = 12.0  # 1 / variance of a uniform on [0, 1]
 _STEP = 1e-4  # finite-difference step of the Jacobian (parameters in [0, 1])
@@ -66,11 +69,26 @@ def model_jacobian(radiance, xp: np.ndarray, start: np.ndarray) -> tuple[np.ndar
     return model, jacobian
 
 
-def residual_variance(residual: np.ndarray, start: np.ndarray) -> np.ndarray:
-    """Per observed texel, the variance its fit leaves: ``|r|^2 / (3 n - 5)`` over its n pairs
-    (residuals ``(N, 3)``; at least 1 degree of freedom, and at least 1e-12)."""
-    dof = np.maximum(3 * np.diff(start) - N_PARAMS, 1)
-    return np.maximum(np.add.reduceat((np.asarray(residual) ** 2).sum(axis=1), start[:-1]) / dof, 1e-12)
+def residual_variance(residual: np.ndarray, slot: np.ndarray, n_slots: int) -> np.ndarray:
+    """Per texel, the variance its fit leaves: ``|r|^2 / (3 n - 5)`` over its n pairs.
+
+    Parameters
+    ----------
+    residual : numpy.ndarray
+        Shape ``(N, 3)``: model minus observed radiance of each pair.
+    slot : numpy.ndarray
+        Shape ``(N,)``, int: each pair's texel, in ``[0, n_slots)``.
+    n_slots : int
+        Number of texels.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(n_slots,)``: at least 1 degree of freedom is assumed, and the variance is at least 1e-12.
+    """
+    squares = np.bincount(slot, (np.asarray(residual, dtype=np.float64) ** 2).sum(axis=1), minlength=n_slots)
+    dof = np.maximum(3 * np.bincount(slot, minlength=n_slots) - N_PARAMS, 1)
+    return np.maximum(squares / dof, 1e-12)
 
 
 def laplace_variance(radiance, xp: np.ndarray, observed: np.ndarray, start: np.ndarray,
@@ -94,7 +112,9 @@ def laplace_variance(radiance, xp: np.ndarray, observed: np.ndarray, start: np.n
     if not (np.isfinite(variance_scale) and variance_scale > 0):
         raise ValueError(f"variance_scale must be a finite number > 0, got {variance_scale!r}")
     model, jacobian = model_jacobian(radiance, xp, start)
-    s2 = residual_variance(model - np.asarray(observed, dtype=np.float64), start)
+    n_obs = start.shape[0] - 1
+    s2 = residual_variance(model - np.asarray(observed, dtype=np.float64),
+                           np.repeat(np.arange(n_obs), np.diff(start)), n_obs)
     curvature = np.add.reduceat(np.einsum("ncq,ncr->nqr", jacobian, jacobian), start[:-1])  # (T_obs, 5, 5)
     precision = curvature / s2[:, None, None] + PRIOR_PRECISION * np.eye(N_PARAMS)
     return variance_scale * np.diagonal(np.linalg.inv(precision), axis1=1, axis2=2).copy()
@@ -106,3 +126,23 @@ def expected_error(variance: np.ndarray) -> np.ndarray:
     `freqbrdf.report.metrics.parameter_error_map` averages the squared errors."""
     v = np.asarray(variance, dtype=np.float64)
     return (v[:, :3].mean(axis=1) + v[:, 3] + v[:, 4]) / 3.0
+
+
+def expected_error_atlas(std: Mapping[str, np.ndarray]) -> np.ndarray:
+    """`expected_error` of every texel of an estimate's posterior deviation atlases.
+
+    Parameters
+    ----------
+    std : mapping
+        Posterior standard deviations as `freqbrdf.artefacts.read_posterior_std` returns
+        them: ``base_color`` (R, R, 3), ``roughness`` and ``metallic`` (R, R); the prior's
+        where no view observes the texel, so those texels score worst.
+
+    Returns
+    -------
+    ndarray, shape (R, R), float64
+    """
+    shape = np.shape(std["roughness"])
+    variance = np.column_stack([np.asarray(std[g], np.float64).reshape(shape[0] * shape[1], -1) ** 2
+                                for g in TEXTURES])
+    return expected_error(variance).reshape(shape)
