@@ -74,7 +74,6 @@ def test_every_output_is_written(run):
 def test_captured_light_and_a_scan_are_built_with_their_sources(repo, tmp_path):
     """An environment of kind hdri and a scanned object, through rules fetch_asset_package, build_env
     and build_object: cleaned, averaged down and turned; atlased; each with its source and licence."""
-
     import yaml
 
     extra = tmp_path / "real.yaml"
