@@ -1,6 +1,7 @@
 """Which per-texel map should the merge of rule ``merge_svbrdf`` (paper Table 6) take texels by?
 
-Reads a finished run of the tuning preset (config/tuning.yaml; never a reported run). For each
+Reads a finished run: the tuning preset's (config/tuning.yaml) to choose the map, a reported
+run's only to report the choice's effect there. For each
 object with several captures and each capture the merge is filed under, merges ``freq``'s
 estimates of all the object's captures, per texel from the capture lowest in:
 
@@ -14,7 +15,7 @@ estimates of all the object's captures, per texel from the capture lowest in:
 and scores each merge, and the filed capture's own estimate (``single``), by parameter MSE
 over the texels the filed capture observes (as metrics.csv scores a merge).
 
-    python bench/merge_map.py --results DIR        (DIR: the tuning run's results)
+    python bench/merge_map.py --results DIR        (DIR: a finished run's results)
 
 Prints one row per object and filed capture, and the means.
 """

@@ -445,7 +445,7 @@ def test_gltf_files_environments_and_viewers_are_written_per_capture(repo, run):
         names = [p["name"] for p in data["panels"]]
         assert names == (["truth"] if capture == "sphere/studio" else []) + list(tiny_methods(repo))
         own = {p["name"]: p["uncertainty"] for p in data["panels"]}
-        assert all(own[m] == (m if METHODS[m].rule == "optimise_svbrdf" else "entropy") for m in tiny_methods(repo))
+        assert all(own[m] == (m if METHODS[m].has_posterior else "entropy") for m in tiny_methods(repo))
         assert set(data["overlays"]) == {"entropy"} | {m for m in tiny_methods(repo) if own[m] == m}
     for env in ("studio", "museum", "sunny", "overcast"):
         hdr, exr_env = read_hdr(run / f"results/envs/{env}.hdr"), read_exr(run / f"results/envs/{env}.exr")

@@ -91,6 +91,11 @@ class Method:
             raise ValueError(f"method {self.name!r}: paper_rows names unknown tables {sorted(unknown)}")
         object.__setattr__(self, "paper_rows", MappingProxyType(dict(self.paper_rows)))
 
+    @property
+    def has_posterior(self) -> bool:
+        """Whether its estimates carry a per-texel posterior (``std_*.exr``): those of ``optimise_svbrdf``."""
+        return self.rule == "optimise_svbrdf"
+
 
 def build_registry(*methods: Method) -> Mapping[str, Method]:
     """A read-only name -> method mapping, checking that names are unique and starts registered."""
@@ -100,7 +105,7 @@ def build_registry(*methods: Method) -> Mapping[str, Method]:
     for m in methods:
         if m.start is not None and m.start not in registry:
             raise ValueError(f"method {m.name!r} starts from {m.start!r}, which is not registered")
-        if m.merged_by == "posterior" and registry[m.start].rule != "optimise_svbrdf":
+        if m.merged_by == "posterior" and not registry[m.start].has_posterior:
             raise ValueError(f"method {m.name!r} merges by the posterior, which {m.start!r} does not write")
     return MappingProxyType(registry)
 

@@ -230,7 +230,7 @@ def candidate_poses(wildcards):
 
 
 # ---- input functions of rules/export.smk
-VIEWER_POSTERIORS = [m for m in METHODS if METHOD_REGISTRY[m].rule == "optimise_svbrdf"]  # estimates with a posterior
+VIEWER_POSTERIORS = [m for m in METHODS if METHOD_REGISTRY[m].has_posterior]
 
 
 def viewer_posteriors(wildcards):

@@ -19,7 +19,7 @@ from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
 from freqbrdf.report.metrics import (base_color_si_scores, brdf_log_error, is_converged, last_epoch_change,
                                      parameter_error_map, parameter_mse, pearson, time_to_reach)
-from freqbrdf.estimate.optimise.posterior import expected_error_atlas
+from freqbrdf.estimate.optimise.posterior import expected_error
 from freqbrdf.report.sparsification import (baseline_maps, interval_coverage, partial_pearson, sparsification_curves,
                                              uncertainty_scores)
 from freqbrdf.report.tables.tidy import TIDY_COLUMNS
@@ -70,7 +70,7 @@ def parameter_rows(smk):
             rows.append(key | dict(metric="pearson_entropy_error", value=pearson(entropy, error)))
             rows.append(key | dict(metric="partial_pearson_entropy_error_views", value=partial_pearson(entropy, error, views)))
             maps = {"entropy": entropy, **baselines((obj, env, poses))}
-            if METHODS[method].rule == "optimise_svbrdf":  # its fit's posterior (read_posterior_std)
+            if METHODS[method].has_posterior:
                 posterior, coverage = posterior_rows(directory, truth(obj), estimate, texels)
                 maps["posterior"] = posterior
                 rows.append(key | dict(metric="mean_posterior_error", value=float(posterior.mean())))
@@ -90,12 +90,11 @@ def posterior_rows(directory, truth, estimate, texels):
     n = np.asarray(estimate["roughness"]).size
     at = lambda atlas: np.asarray(atlas, dtype=np.float64).reshape(n, -1)[texels]  # noqa: E731 (T, channels)
     est, tru = {g: at(estimate[g]) for g in TEXTURES}, {g: at(truth[g]) for g in TEXTURES}
-    atlas = read_posterior_std(directory)
-    std = {g: at(a) for g, a in atlas.items()}
+    std = {g: at(a) for g, a in read_posterior_std(directory).items()}
     coverage = {g: interval_coverage(est[g], tru[g], std[g]) for g in TEXTURES}
     est_all, tru_all, std_all = (np.column_stack([d[g] for g in TEXTURES]) for d in (est, tru, std))
     coverage["all"] = interval_coverage(est_all, tru_all, std_all)
-    return expected_error_atlas(atlas).ravel()[texels], coverage
+    return expected_error(std_all**2), coverage
 
 
 def reference_views(test, min_coverage):

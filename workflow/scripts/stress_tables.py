@@ -33,7 +33,7 @@ def capture_arrays(smk, index):
     estimates = dict(zip(p.methods, smk.input.estimates[n * index : n * (index + 1)]))
     error = {m: parameter_error_map(truth, read_svbrdf(d)).ravel()[texels] for m, d in estimates.items()}
     uncertainty |= {f"posterior_{m}": expected_error_atlas(read_posterior_std(d)).ravel()[texels]
-                    for m, d in estimates.items() if METHODS[m].rule == "optimise_svbrdf"}
+                    for m, d in estimates.items() if METHODS[m].has_posterior}
     return obs, texels, uncertainty, error
 
 

@@ -42,9 +42,8 @@ BACKGROUND = "#3a3a40"
 ENTROPY = "entropy"
 """The overlay of the capture's spectrum entropy, which every page has."""
 POSTERIOR_RMS_MAX = 0.25
-"""Expected RMS parameter error shown in full red: above what `freq` reaches on a whole capture
-(its parameter MSE, 0.02-0.06 on the tuning sets, is an RMS error of 0.14-0.24), so red marks texels
-expected to be worse than a typical estimate."""
+"""Expected RMS parameter error shown in full red: above a whole `freq` estimate's RMS error on the
+tuning sets (docs/tuning_log.md), so red marks texels expected to be worse than a typical estimate."""
 
 
 @dataclass(frozen=True)
