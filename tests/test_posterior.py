@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from freqbrdf.estimate.optimise.posterior import (PRIOR_PRECISION, expected_error, expected_error_atlas,
-                                                  laplace_variance, residual_variance)
+                                                  laplace_variance, pair_information, pooled_residual_variance,
+                                                  residual_variance)
 from freqbrdf.report.metrics import parameter_error_map
 
 
@@ -91,3 +92,21 @@ def test_the_residual_variance_divides_by_the_degrees_of_freedom_left() -> None:
     residual = np.array([[1.0, 2.0, 0.0], [0.0, 0.0, 2.0], [3.0, 0.0, 0.0]])
     s2 = residual_variance(residual, np.array([0, 0, 2]), 3)
     np.testing.assert_allclose(s2, [9.0, 1e-12, 9.0])
+
+
+def test_the_pooled_variance_spends_five_degrees_of_freedom_per_texel_with_a_pair() -> None:
+    """Texel 0 with 3 pairs (9 residuals, 4 left), texel 2 with 1 (3 residuals, -2 left): 2 in
+    all for a squared sum of 14 + 9 + 4 + 9 = 36; no pair raises."""
+    residual = np.array([[1.0, 2.0, 3.0], [0.0, 0.0, 3.0], [2.0, 0.0, 0.0], [3.0, 0.0, 0.0]])
+    assert pooled_residual_variance(residual, np.array([0, 0, 0, 2])) == pytest.approx(36.0 / 2.0)
+    with pytest.raises(ValueError, match="no pair"):
+        pooled_residual_variance(np.empty((0, 3)), np.empty(0, dtype=int))
+
+
+def test_pair_information_is_the_jacobians_gram_matrix_summed_over_channels() -> None:
+    """Against the explicit sum of outer products, and symmetric positive semi-definite."""
+    jacobian = np.random.default_rng(3).normal(size=(4, 3, 5))
+    info = pair_information(jacobian)
+    expected = np.stack([sum(np.outer(j[c], j[c]) for c in range(3)) for j in jacobian])
+    np.testing.assert_allclose(info, expected, rtol=1e-12)
+    assert np.all(np.linalg.eigvalsh(info) > -1e-12)

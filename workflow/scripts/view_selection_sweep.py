@@ -27,11 +27,10 @@ from freqbrdf.studies.posterior_selection import capture_information, greedy_pos
 from freqbrdf.studies.views import estimate_subset, view_subsets
 
 
-def posterior_order(smk, obs, envmap, texels, directions, k, fit_setup, log):
-    """The pilot's views (``pilot_views`` evenly spread) and, in the order chosen, the ``k`` minus
-    that many views that most lower the mean error the pilot fit's posterior expects on the sampled
-    texels, their images unread; with seconds taken. Greedy picks are nested, so the first k' of
-    them are the choice at any k' <= k."""
+def posterior_setup(smk, obs, envmap, texels, directions, fit_setup, log):
+    """The pilot's views (``pilot_views`` evenly spread) and the information every view would add
+    to the sampled texels' posterior at the pilot's estimate, their images unread; with seconds
+    taken. Shared by every k: each k's greedy choice (`subsets`) starts from it."""
     p = smk.params
     settings, light, e = fit_setup
     start = time.perf_counter()
@@ -43,16 +42,16 @@ def posterior_order(smk, obs, envmap, texels, directions, k, fit_setup, log):
                           obs.meta)
     information = capture_information(sample, pilot, {name: v[texels] for name, v in estimate.items()}, light,
                                       e[texels], settings)
-    picks, errors = greedy_posterior_selection(information, k, chosen=pilot.tolist())
     seconds = time.perf_counter() - start
-    log.info("posterior-guided views %s after the pilot's %s, mean expected error %.4f -> %.4f (%.1f s)", picks,
-             pilot.tolist(), errors[0], errors[-1], seconds)
-    return pilot, picks, seconds
+    log.info("posterior-guided selection: pilot views %s fitted and every view's information in %.1f s",
+             pilot.tolist(), seconds)
+    return pilot, information, seconds
 
 
 def subsets(smk, obs, envmap, texels, directions, k, posterior, log):
     """The k views of each strategy: (strategy, repetition) -> (view indices, seconds to choose);
-    ``posterior``: `posterior_order`'s result, or None."""
+    ``posterior``: `posterior_setup`'s result, or None; its rows' seconds are the pilot's and
+    the greedy choice's at this k."""
     p = smk.params
     a_prime = band_limit_parameter(k, p.band_limit)
     start = time.perf_counter()
@@ -65,8 +64,12 @@ def subsets(smk, obs, envmap, texels, directions, k, posterior, log):
     start = time.perf_counter()
     out[("even", 0)] = (farthest_views(directions, k), time.perf_counter() - start)
     if posterior is not None and len(posterior[0]) < k < len(directions):
-        pilot, order, seconds = posterior
-        out[("posterior", 0)] = (np.sort(np.concatenate([pilot, order[: k - len(pilot)]])), seconds)
+        pilot, information, setup_seconds = posterior
+        start = time.perf_counter()
+        picks, errors = greedy_posterior_selection(information, k, chosen=pilot.tolist())
+        out[("posterior", 0)] = (np.sort(np.concatenate([pilot, picks])), setup_seconds + time.perf_counter() - start)
+        log.info("k = %d: posterior-guided views %s after the pilot's, mean expected error %.4f -> %.4f", k, picks,
+                 errors[0], errors[-1])
     for i, seed in enumerate(p.seeds):
         start = time.perf_counter()
         out[("random", i)] = (view_subsets(len(directions), [k], seed)[k], time.perf_counter() - start)
@@ -94,8 +97,7 @@ def main(smk, log):
     done, rows = {}, []
     counts = sorted({min(int(c), n_views) for c in p.settings["sweep_counts"]})
     guided = [k for k in counts if p.settings["pilot_views"] < k < n_views]
-    posterior = (posterior_order(smk, obs, envmap, texels, directions, max(guided), (settings, light, e), log)
-                 if guided else None)
+    posterior = posterior_setup(smk, obs, envmap, texels, directions, (settings, light, e), log) if guided else None
     for k in counts:
         for (strategy, rep), (views, choose_s) in subsets(smk, obs, envmap, texels, directions, k, posterior,
                                                           log).items():

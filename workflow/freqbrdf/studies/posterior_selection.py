@@ -25,7 +25,8 @@ import numpy as np
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature
 from freqbrdf.estimate.optimise.model import ForwardModel
-from freqbrdf.estimate.optimise.posterior import PRIOR_PRECISION, expected_error, model_jacobian, residual_variance
+from freqbrdf.estimate.optimise.posterior import (PRIOR_PRECISION, expected_error, model_jacobian, pair_information,
+                                                  pooled_residual_variance, residual_variance)
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params
 from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings
 from freqbrdf.util.validation import check_int, check_shape
@@ -54,8 +55,7 @@ def view_information(jacobian: np.ndarray, slot: np.ndarray, view: np.ndarray, s
         Shape ``(T, n_views, 5, 5)``: ``sum_c J^T J / s2`` of the texel's pair with the view, 0 where
         the view does not see the texel.
     """
-    jacobian = np.asarray(jacobian, dtype=np.float64)
-    check_shape(jacobian, "jacobian", (None, 3, N_PARAMS))
+    check_shape(np.asarray(jacobian), "jacobian", (None, 3, N_PARAMS))
     slot, view = np.asarray(slot, dtype=np.int64), np.asarray(view, dtype=np.int64)
     s2 = np.asarray(s2, dtype=np.float64)
     n_views = check_int(n_views, "n_views", 1)
@@ -68,7 +68,7 @@ def view_information(jacobian: np.ndarray, slot: np.ndarray, view: np.ndarray, s
         raise ValueError(f"view_information: pairs name texels {slot.min()}..{slot.max()} of {len(s2)} and views "
                          f"{view.min()}..{view.max()} of {n_views}")
     out = np.zeros((len(s2) * n_views, N_PARAMS, N_PARAMS))
-    np.add.at(out, slot * n_views + view, np.einsum("ncq,ncr->nqr", jacobian, jacobian) / s2[slot, None, None])
+    np.add.at(out, slot * n_views + view, pair_information(jacobian) / s2[slot, None, None])
     return out.reshape(len(s2), n_views, N_PARAMS, N_PARAMS)
 
 
@@ -166,9 +166,8 @@ def capture_information(obs: Observations, pilot_views: Sequence[int], pilot: Ma
     pairs = np.bincount(slot[known], minlength=n_obs)
     if not pairs.any():
         raise ValueError(f"capture_information: no texel is seen by the pilot views {pilot_views.tolist()}")
-    pooled = float((residual**2).sum() / max(3 * pairs.sum() - N_PARAMS * np.count_nonzero(pairs), 1))
     s2 = np.where(pairs >= max(min_pilot_views, 1), residual_variance(residual, slot[known], n_obs),
-                  max(pooled, 1e-12))
+                  pooled_residual_variance(residual, slot[known]))
     out = np.zeros((n_texels, n_views, N_PARAMS, N_PARAMS))
     out[problem.observed] = view_information(jacobian, slot, view, s2, n_views)
     return out

@@ -26,8 +26,8 @@ import numpy as np
 from freqbrdf.estimate.optimise.settings import N_PARAMS
 from freqbrdf.sphere.brdf import TEXTURES
 
-__all__ = ["PRIOR_PRECISION", "prior_variance", "model_jacobian", "residual_variance", "laplace_variance",
-           "expected_error", "expected_error_atlas"]
+__all__ = ["PRIOR_PRECISION", "prior_variance", "model_jacobian", "pair_information", "residual_variance",
+           "pooled_residual_variance", "laplace_variance", "expected_error", "expected_error_atlas"]
 
 PRIOR_PRECISION = 12.0  # 1 / variance of a uniform on [0, 1]
 _STEP = 1e-4  # finite-difference step of the Jacobian (parameters in [0, 1])
@@ -69,6 +69,28 @@ def model_jacobian(radiance, xp: np.ndarray, start: np.ndarray) -> tuple[np.ndar
     return model, jacobian
 
 
+def pair_information(jacobian: np.ndarray) -> np.ndarray:
+    """Each pair's ``J^T J`` summed over its channels, the curvature it adds to its texel's misfit.
+
+    Parameters
+    ----------
+    jacobian : numpy.ndarray
+        Shape ``(N, 3, 5)`` (`model_jacobian`).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(N, 5, 5)``, float64.
+    """
+    jacobian = np.asarray(jacobian, dtype=np.float64)
+    return np.einsum("ncq,ncr->nqr", jacobian, jacobian)
+
+
+def _degrees_of_freedom(pairs: np.ndarray) -> np.ndarray:
+    """``3 n - 5`` of texels with n pairs each (3 channels, 5 parameters), at least 1."""
+    return np.maximum(3 * pairs - N_PARAMS, 1)
+
+
 def residual_variance(residual: np.ndarray, slot: np.ndarray, n_slots: int) -> np.ndarray:
     """Per texel, the variance its fit leaves: ``|r|^2 / (3 n - 5)`` over its n pairs.
 
@@ -87,8 +109,22 @@ def residual_variance(residual: np.ndarray, slot: np.ndarray, n_slots: int) -> n
         Shape ``(n_slots,)``: at least 1 degree of freedom is assumed, and the variance is at least 1e-12.
     """
     squares = np.bincount(slot, (np.asarray(residual, dtype=np.float64) ** 2).sum(axis=1), minlength=n_slots)
-    dof = np.maximum(3 * np.bincount(slot, minlength=n_slots) - N_PARAMS, 1)
-    return np.maximum(squares / dof, 1e-12)
+    return np.maximum(squares / _degrees_of_freedom(np.bincount(slot, minlength=n_slots)), 1e-12)
+
+
+def pooled_residual_variance(residual: np.ndarray, slot: np.ndarray) -> float:
+    """The variance the fit leaves over every texel at once: ``sum |r|^2 / sum (3 n_t - 5)``.
+
+    For texels with too few pairs to have a variance of their own; ``residual`` and ``slot``
+    as for `residual_variance` (every texel that has a pair spends 5 degrees of freedom).
+    At least 1e-12; raises if there is no pair.
+    """
+    slot = np.asarray(slot, dtype=np.int64)
+    if slot.size == 0:
+        raise ValueError("pooled_residual_variance: no pair")
+    pairs = np.bincount(slot)
+    dof = max(int(3 * pairs.sum() - N_PARAMS * np.count_nonzero(pairs)), 1)
+    return max(float((np.asarray(residual, dtype=np.float64) ** 2).sum() / dof), 1e-12)
 
 
 def laplace_variance(radiance, xp: np.ndarray, observed: np.ndarray, start: np.ndarray,
@@ -115,7 +151,7 @@ def laplace_variance(radiance, xp: np.ndarray, observed: np.ndarray, start: np.n
     n_obs = start.shape[0] - 1
     s2 = residual_variance(model - np.asarray(observed, dtype=np.float64),
                            np.repeat(np.arange(n_obs), np.diff(start)), n_obs)
-    curvature = np.add.reduceat(np.einsum("ncq,ncr->nqr", jacobian, jacobian), start[:-1])  # (T_obs, 5, 5)
+    curvature = np.add.reduceat(pair_information(jacobian), start[:-1])  # (T_obs, 5, 5)
     precision = curvature / s2[:, None, None] + PRIOR_PRECISION * np.eye(N_PARAMS)
     return variance_scale * np.diagonal(np.linalg.inv(precision), axis1=1, axis2=2).copy()
 
