@@ -23,6 +23,7 @@ import yaml
 
 from freqbrdf import layout
 from freqbrdf.artefacts import read_observations, read_posterior_std, read_svbrdf
+from freqbrdf.report.metrics import texel_parameter_columns
 from freqbrdf.sphere.brdf import TEXTURES
 
 Z90 = 1.645  # half-width of a Gaussian's central 90% interval, in standard deviations
@@ -37,11 +38,8 @@ def standardised_errors(results: Path, capture: str, method: str = "freq") -> np
     texels = obs.texels.texel[obs.observed]
     estimate_dir = layout.located(layout.ESTIMATE, results, method=method, **where)
     truth = read_svbrdf({g: layout.located(layout.OBJECT_TEXTURE, results, object=obj, texture=g) for g in TEXTURES})
-    std = read_posterior_std(estimate_dir)
-    std = {g: np.asarray(a, dtype=np.float64).reshape(-1, 3 if g == "base_color" else 1)[texels] for g, a in std.items()}
-    columns = lambda values: np.column_stack([np.reshape(values[g], (len(texels), -1)) for g in TEXTURES])  # noqa: E731
-    error = columns(read_svbrdf(estimate_dir).at_texels(texels)) - columns(truth.at_texels(texels))
-    return np.abs(error) / columns(std)
+    error = texel_parameter_columns(read_svbrdf(estimate_dir), texels) - texel_parameter_columns(truth, texels)
+    return np.abs(error) / texel_parameter_columns(read_posterior_std(estimate_dir), texels)
 
 
 def scale_for_coverage(z: np.ndarray, used: float) -> float:

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from freqbrdf.report.metrics import parameter_mse, pearson
+from freqbrdf.report.metrics import PARAMETER_COLUMNS, parameter_mse, pearson, texel_parameter_columns
 
 
 def _svbrdf(value: float, r: int = 4):
@@ -32,6 +32,20 @@ def test_mismatched_sizes_and_empty_masks_are_refused():
         parameter_mse(_svbrdf(0.5), _svbrdf(0.5) | {"roughness": np.zeros((2, 2))}, np.arange(4))
     with pytest.raises(ValueError, match="no texels"):
         parameter_mse(_svbrdf(0.5), _svbrdf(0.5), np.array([], int))
+
+
+def test_texel_parameter_columns_hold_each_texels_five_parameters_in_optimiser_order() -> None:
+    """Distinct values everywhere: each column of each selected texel is its atlas value, and
+    PARAMETER_COLUMNS names each texture's columns."""
+    rng = np.random.default_rng(5)
+    textures = {"base_color": rng.random((3, 3, 3)), "roughness": rng.random((3, 3)), "metallic": rng.random((3, 3))}
+    texels = np.array([7, 0, 4])
+    columns = texel_parameter_columns(textures, texels)
+    assert columns.shape == (3, 5) and columns.dtype == np.float64
+    rows, cols = np.divmod(texels, 3)
+    np.testing.assert_array_equal(columns[:, PARAMETER_COLUMNS["base_color"]], textures["base_color"][rows, cols])
+    np.testing.assert_array_equal(columns[:, 3], textures["roughness"][rows, cols])
+    np.testing.assert_array_equal(columns[:, PARAMETER_COLUMNS["metallic"]][:, 0], textures["metallic"][rows, cols])
 
 
 # --------------------------------------------------------------------------

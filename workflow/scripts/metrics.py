@@ -17,8 +17,9 @@ from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
-from freqbrdf.report.metrics import (base_color_si_scores, brdf_log_error, is_converged, last_epoch_change,
-                                     parameter_error_map, parameter_mse, pearson, time_to_reach)
+from freqbrdf.report.metrics import (PARAMETER_COLUMNS, base_color_si_scores, brdf_log_error, is_converged,
+                                     last_epoch_change, parameter_error_map, parameter_mse, pearson,
+                                     texel_parameter_columns, time_to_reach)
 from freqbrdf.estimate.optimise.posterior import expected_error
 from freqbrdf.report.sparsification import (baseline_maps, interval_coverage, partial_pearson, sparsification_curves,
                                              uncertainty_scores)
@@ -87,14 +88,10 @@ def parameter_rows(smk):
 def posterior_rows(directory, truth, estimate, texels):
     """The expected squared parameter error of each scored texel under its fit's posterior, and
     the coverage of the 90% intervals per texture and over all (``all``)."""
-    n = np.asarray(estimate["roughness"]).size
-    at = lambda atlas: np.asarray(atlas, dtype=np.float64).reshape(n, -1)[texels]  # noqa: E731 (T, channels)
-    est, tru = {g: at(estimate[g]) for g in TEXTURES}, {g: at(truth[g]) for g in TEXTURES}
-    std = {g: at(a) for g, a in read_posterior_std(directory).items()}
-    coverage = {g: interval_coverage(est[g], tru[g], std[g]) for g in TEXTURES}
-    est_all, tru_all, std_all = (np.column_stack([d[g] for g in TEXTURES]) for d in (est, tru, std))
-    coverage["all"] = interval_coverage(est_all, tru_all, std_all)
-    return expected_error(std_all**2), coverage
+    est, tru, std = (texel_parameter_columns(a, texels) for a in (estimate, truth, read_posterior_std(directory)))
+    coverage = {g: interval_coverage(est[:, c], tru[:, c], std[:, c]) for g, c in PARAMETER_COLUMNS.items()}
+    coverage["all"] = interval_coverage(est, tru, std)
+    return expected_error(std**2), coverage
 
 
 def reference_views(test, min_coverage):

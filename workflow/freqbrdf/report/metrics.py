@@ -5,6 +5,7 @@ error. Relit images against ground-truth renders: :mod:`freqbrdf.report.relight_
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -189,11 +190,35 @@ def brdf_directions(grid: tuple[int, int, int] = BRDF_GRID) -> tuple[np.ndarray,
     return cos_i[above], cos_o[above], np.cos(th)[above], np.cos(td)[above]
 
 
-def _texel_parameters(textures: dict[str, np.ndarray], texels: np.ndarray) -> tuple[np.ndarray, ...]:
+def _texel_parameters(textures: Mapping[str, np.ndarray], texels: np.ndarray) -> tuple[np.ndarray, ...]:
     """Base colour (N, 3), roughness (N,) and metallic (N,) of the selected texels."""
-    n = textures["roughness"].shape[0] * textures["roughness"].shape[1]
+    n = np.shape(textures["roughness"])[0] * np.shape(textures["roughness"])[1]
     return (np.reshape(textures["base_color"], (n, 3))[texels], np.reshape(textures["roughness"], n)[texels],
             np.reshape(textures["metallic"], n)[texels])
+
+
+# The columns of `texel_parameter_columns` each texture takes.
+PARAMETER_COLUMNS = {"base_color": slice(0, 3), "roughness": slice(3, 4), "metallic": slice(4, 5)}
+
+
+def texel_parameter_columns(textures: Mapping[str, np.ndarray], texels: np.ndarray) -> np.ndarray:
+    """The five parameters of the selected texels side by side, as the optimiser orders them.
+
+    Parameters
+    ----------
+    textures : mapping
+        Atlases ``base_color`` (R, R, 3), ``roughness`` and ``metallic`` (R, R): an SVBRDF, or
+        its posterior's standard deviations.
+    texels : numpy.ndarray
+        Shape ``(N,)``: flat atlas indices.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(N, 5)``, float64: base R, G, B, roughness, metallic (`PARAMETER_COLUMNS`).
+    """
+    base, roughness, metallic = _texel_parameters(textures, texels)
+    return np.column_stack([base, roughness, metallic]).astype(np.float64)
 
 
 def brdf_log_rmse(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray], texels: np.ndarray,
