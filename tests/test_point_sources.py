@@ -8,7 +8,8 @@ from test_optimise import MODELS, OPTIMISER_METHODS, central_differences, local_
 
 from freqbrdf.estimate import light as lt
 from freqbrdf.estimate.optimise.kernels import KernelModel
-from freqbrdf.estimate.optimise.model import estimate_light, forward, light_terms, loss_and_gradient, point_terms
+from freqbrdf.estimate.optimise.model import (estimate_light, forward, light_terms, loss_and_gradient,
+                                              pair_source_geometry, point_terms)
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params
 from freqbrdf.estimate.optimise.settings import OptimiseSettings
 from freqbrdf.estimate.optimise.solve import optimise
@@ -126,15 +127,34 @@ def test_gradient_with_point_sources_matches_central_differences(method: str, mo
     np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-8)
 
 
+def test_pair_source_geometry_is_the_half_vectors_at_half_the_angle() -> None:
+    """Looking down the normal at a source theta away, the half vector lies at theta / 2: its
+    sin^2, Schlick's (1 - cos(theta / 2))^5 and 1 / (4 cos theta_o) = 1/4; a source below the
+    horizon, or a pair of another texel that sees the source from below, gets 0 (dropped)."""
+    theta = np.array([0.3, 1.2])
+    incoming = np.stack([np.stack([np.sin(theta), np.zeros(2), np.cos(theta)], axis=1),  # texel 0: two sources
+                         [[0.0, 0.0, 1.0], [0.6, 0.0, -0.8]]])  # texel 1: overhead, below the horizon
+    wo = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
+    geometry = pair_source_geometry(wo, incoming, np.array([0, 0, 1]), "float64")
+    assert geometry.shape == (3, 2, 3) and geometry.dtype == np.float64
+    np.testing.assert_allclose(geometry[:2, :, 0], np.broadcast_to(np.sin(theta / 2) ** 2, (2, 2)), rtol=1e-12)
+    np.testing.assert_allclose(geometry[:2, :, 1], np.broadcast_to((1 - np.cos(theta / 2)) ** 5, (2, 2)), rtol=1e-12)
+    np.testing.assert_allclose(geometry[:2, :, 2], 0.25)
+    # texel 1's pair: overhead source, view at cos 0.8 (h at half of 36.87 degrees); the second source is dropped
+    half = np.arccos(0.8) / 2
+    np.testing.assert_allclose(geometry[2, 0], [np.sin(half) ** 2, (1 - np.cos(half)) ** 5, 0.25 / 0.8], rtol=1e-12)
+    assert geometry[2, 1, 2] == 0.0
+
+
 def test_point_terms_are_checked() -> None:
     capture, env, normal = one_pixel_scene(n_tex=4, n_views=6)
     obs = Observations.from_arrays(np.zeros(capture["wo_local"].shape), capture["weight"], capture["wo_local"],
                                    capture["frame"], np.arange(4), 2)
     problem = build_problem(obs, lt.irradiance(env, normal), "float64")
     assert point_terms(problem, lt.PointSources(np.zeros((0, 3)), np.zeros((0, 3))), True) is None
-    wo, src = point_terms(problem, lt.extract_point_sources(env, 3.0, 20.0)[1], True)
+    geometry, src = point_terms(problem, lt.extract_point_sources(env, 3.0, 20.0)[1], True)
     with pytest.raises(ValueError, match="point must be"):
-        forward(np.full((4, 5), 0.5), problem, np.zeros((problem.n_pairs, 3, 3)), KernelModel(True, point=(wo[1:], src)))
+        forward(np.full((4, 5), 0.5), problem, np.zeros((problem.n_pairs, 3, 3)), KernelModel(True, point=(geometry[1:], src)))
 
 
 def test_estimate_light_keeps_point_sources_out_of_the_paper_light() -> None:

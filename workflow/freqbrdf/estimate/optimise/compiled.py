@@ -244,7 +244,7 @@ def _model(m, base, e_pi, r0_dielectric, work, c):  # pragma: no cover - compile
 
 
 @numba.njit(cache=True, inline="always")
-def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src,
+def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, src,
                 texel):  # pragma: no cover - compiled
     """Per channel of pair n, the specular term split as ``R0 work[0] + work[1]``, in ``work[2]``,
     ``work[3]`` their derivatives in alpha, in ``work[4]`` and ``work[5]`` the diffuse factor d and
@@ -275,33 +275,31 @@ def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd
         work[1, c] = v * s
         work[2, c] = du * s + u * d
         work[3, c] = dv * s + v * d
-    for j in range(src.shape[1]):
-        _point_source(alpha, wo, n, tan2[n], masking, src, texel, j, work)
+    if src.shape[1]:
+        gm, dgm = _masking(alpha, tan2[n], masking)
+        for j in range(src.shape[1]):
+            _point_source(alpha, geo, n, gm, dgm, src, texel, j, work)
 
 
 @numba.njit(cache=True, inline="always")
-def _point_source(alpha, wo, n, tan2_o, masking, src, s, j, work):  # pragma: no cover - compiled
+def _point_source(alpha, geo, n, gm, dgm, src, s, j, work):  # pragma: no cover - compiled
     """Add point source j of texel s to the specular parts of pair n (`_pair_terms`): the GGX
     microfacet BRDF times cos theta_i, ``D G1(theta_i) G1m F / (4 cos theta_o)`` with Schlick's
-    ``F = R0 (1 - c5h) + c5h`` at the half vector, times the source's power."""
-    iz = src[s, j, 2]
-    if iz <= 0.0:
+    ``F = R0 (1 - c5h) + c5h`` at the half vector, times the source's power; ``geo[n, j]`` the
+    half vector's ``sin^2 theta_h``, ``c5h`` and ``1 / (4 cos theta_o)``
+    (`freqbrdf.estimate.optimise.model.pair_source_geometry`), ``gm``, ``dgm`` G1m and its derivative."""
+    inv4o = geo[n, j, 2]
+    if inv4o <= 0.0:
         return
-    ox, oy, oz = wo[n, 0], wo[n, 1], wo[n, 2]
-    hx, hy, hz = src[s, j, 0] + ox, src[s, j, 1] + oy, iz + oz
-    norm = np.sqrt(hx * hx + hy * hy + hz * hz)
-    if norm <= 0.0 or oz <= 0.0:
-        return
-    cos2_h = (hz / norm) ** 2
-    c5h = (1.0 - min(max((hx * ox + hy * oy + hz * oz) / norm, 0.0), 1.0)) ** 5
+    sin2_h = geo[n, j, 0]
+    c5h = geo[n, j, 1]
     a2 = alpha * alpha
-    t = cos2_h * (a2 - 1.0) + 1.0
+    t = sin2_h + (1.0 - sin2_h) * a2
     ndf = a2 / (np.pi * t * t)
-    dndf = 2.0 * alpha / (np.pi * t * t) * (1.0 - 2.0 * a2 * cos2_h / t)
+    dndf = 2.0 * alpha / (np.pi * t * t) * (1.0 - 2.0 * a2 * (1.0 - sin2_h) / t)
     gi, dgi = _masking(alpha, src[s, j, 3], True)  # src[s, j, 3] is 0 without shadowing: G1 = 1
-    gm, dgm = _masking(alpha, tan2_o, masking)
-    q = ndf * gi * gm / (4.0 * oz)
-    dq = (dndf * gi * gm + ndf * dgi * gm + ndf * gi * dgm) / (4.0 * oz)
+    q = ndf * gi * gm * inv4o
+    dq = (dndf * gi * gm + ndf * dgi * gm + ndf * gi * dgm) * inv4o
     for c in range(3):
         power = src[s, j, 4 + c]
         work[0, c] += power * q * (1.0 - c5h)
@@ -311,7 +309,7 @@ def _point_source(alpha, wo, n, tan2_o, masking, src, s, j, work):  # pragma: no
 
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
-def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo,
+def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, geo,
               src, grad, loss, model):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
@@ -332,7 +330,7 @@ def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
             sum_d = 0.0
             total = 0.0
             for n in range(start[s], start[s + 1]):
-                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
+                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, src, s)
                 for c in range(3):
                     value = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c)
                     if write_model:
@@ -353,7 +351,7 @@ def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
 
 
 @numba.njit(parallel=True, cache=True)
-def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, wo, src,
+def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, geo, src,
                 r_grid, m_grid, max_pairs, out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
@@ -376,7 +374,7 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
                 _lobe(alpha, alpha_min, lobe, f, fd)
                 vi, vw, vd = _view_basis(alpha, alpha_min, view)
                 for i in range(k):
-                    _pair_terms(alpha, f, fd, light, lo + i, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
+                    _pair_terms(alpha, f, fd, light, lo + i, schlick, tan2, masking, view, vi, vw, vd, work, geo, src, s)
                     for c in range(3):
                         rise[i, c] = work[0, c]
                         fixed[i, c] = work[1, c]
@@ -407,7 +405,7 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
 
 @numba.njit(cache=True, inline="always")
 def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
-                wo, src, nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
+                geo, src, nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
     """Objective of texel s at parameters ``xs`` (5,): its L1 data term times ``data_scale`` plus
     ``tv_scale`` times the TV of its edges, the neighbours held at ``x`` (S, 5); ``f``, ``fd``
     (L,) and ``work`` (6, 3) are scratch."""
@@ -418,7 +416,7 @@ def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
         vi, vw, vd = _view_basis(alpha, alpha_min, view)
         m = xs[4]
         for n in range(start[s], start[s + 1]):
-            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
+            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, src, s)
             for c in range(3):
                 cost += abs(_model(m, xs[c], e_pi[s, c], r0_dielectric, work, c) - radiance[n, c])
         cost *= data_scale
@@ -461,7 +459,7 @@ def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, inline="always")
 def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
-                 wo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h,
+                 geo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h,
                  g):  # pragma: no cover - compiled
     """Texel s's objective at ``x[s]``, and in ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton
     matrix and gradient of its reweighted quadratic (see `lm_sweep`); the rest is scratch."""
@@ -482,7 +480,7 @@ def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
         _lobe(alpha, alpha_min, lobe, f, fd)
         vi, vw, vd = _view_basis(alpha, alpha_min, view)
         for p in range(lo, hi):
-            _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work, wo, src, s)
+            _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work, geo, src, s)
             for c in range(3):
                 res = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c) - radiance[p, c]
                 cost += abs(res)
@@ -552,7 +550,7 @@ def _predicted_gain(h, g, step):  # pragma: no cover - compiled
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
 def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
-              wo, src, nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
+              geo, src, nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
               cost_out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n = texels.shape[0]
@@ -569,7 +567,7 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
         for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
             s = texels[i]
             cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                r0_dielectric, lobe, view, wo, src, nb_start, nb, data_scale, tv_scale, irls_floor,
+                                r0_dielectric, lobe, view, geo, src, nb_start, nb, data_scale, tv_scale, irls_floor,
                                 tv_floor, f, fd, work, h, g)
             cost_out[i] = cost
             lam_s = lam[s]
@@ -584,7 +582,7 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                 for q in range(5):
                     trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
                 new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                  r0_dielectric, lobe, view, wo, src, nb_start, nb, x, data_scale, tv_scale, f, fd,
+                                  r0_dielectric, lobe, view, geo, src, nb_start, nb, x, data_scale, tv_scale, f, fd,
                                   work)
                 if new < cost:
                     x[s, :] = trial

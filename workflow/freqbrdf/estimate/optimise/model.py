@@ -22,7 +22,7 @@ from freqbrdf.sphere.sh import recurrence_tables
 from freqbrdf.util.threads import set_threads
 from freqbrdf.util.validation import check_finite, check_int, check_shape
 
-__all__ = ["ForwardModel", "estimate_light", "model_light", "point_terms", "model_tables", "light_terms",
+__all__ = ["ForwardModel", "estimate_light", "model_light", "point_terms", "pair_source_geometry", "model_tables", "light_terms",
            "refit_light", "forward", "loss_and_gradient", "grid_start"]
 
 
@@ -52,9 +52,11 @@ def model_light(
 def point_terms(
     problem: Problem, sources: PointSources | None, shadowing: bool,
 ) -> tuple[np.ndarray, np.ndarray] | None:
-    """The point sources of `freqbrdf.estimate.optimise.kernels.KernelModel` for ``sources``: each
-    pair's view and, per observed texel (internal order) and source, its direction in the
-    texel's frame, ``tan^2 theta_i`` (0 without ``shadowing``: G1 = 1) and its power.
+    """The point sources of `freqbrdf.estimate.optimise.kernels.KernelModel` for ``sources``.
+
+    Per pair and source, the geometry of its half vector, which no parameter changes
+    (`pair_source_geometry`); per observed texel (internal order) and source, its direction in
+    the texel's frame, ``tan^2 theta_i`` (0 without ``shadowing``: G1 = 1) and its power.
     None if there are no sources."""
     if sources is None or not len(sources.power):
         return None
@@ -62,7 +64,44 @@ def point_terms(
     cos_i = local[..., 2]
     tan2_i = tan2_theta(np.clip(cos_i, 1e-6, 1.0)) if shadowing else np.zeros_like(cos_i)
     power = np.broadcast_to(sources.power[None], cos_i.shape + (3,))
-    return problem.wo_local, np.concatenate([local, tan2_i[..., None], power], axis=2)
+    return (pair_source_geometry(problem.wo_local, local, problem.pair_slot, problem.dtype),
+            np.concatenate([local, tan2_i[..., None], power], axis=2))
+
+
+def pair_source_geometry(wo: np.ndarray, incoming: np.ndarray, slot: np.ndarray, dtype="float32") -> np.ndarray:
+    """What the microfacet term of each pair and point source needs of the half vector ``h``.
+
+    Parameters
+    ----------
+    wo : numpy.ndarray
+        Shape ``(N, 3)``: each pair's view direction in its texel's frame (unit).
+    incoming : numpy.ndarray
+        Shape ``(T, S, 3)``: each source's direction in each texel's frame (unit).
+    slot : numpy.ndarray
+        Shape ``(N,)``, int: each pair's texel.
+    dtype : {"float32", "float64"}
+        Of the result (the problem's: the kernels read it at every evaluation).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(N, S, 3)``: ``sin^2 theta_h`` (kept instead of ``cos^2``, whose
+        ``1 - cos^2`` would cancel for a sharp lobe), Schlick's ``(1 - h.wo)^5`` and
+        ``1 / (4 cos theta_o)``; the last is 0 where the source or the view is below the
+        horizon, which drops the term.
+    """
+    wo = np.asarray(wo, dtype=np.float64)
+    out = np.zeros((wo.shape[0], np.shape(incoming)[1], 3), dtype=dtype)
+    for j in range(out.shape[1]):  # one source at a time: (N, 3) temporaries, not (N, S, 3)
+        wi = np.asarray(incoming, dtype=np.float64)[slot, j]
+        h = wi + wo
+        norm2 = np.einsum("ni,ni->n", h, h)
+        lit = (wi[:, 2] > 0) & (wo[:, 2] > 0) & (norm2 > 0)
+        norm2 = np.where(lit, norm2, 1.0)
+        out[:, j, 0] = (h[:, 0] ** 2 + h[:, 1] ** 2) / norm2
+        out[:, j, 1] = (1.0 - np.clip(np.einsum("ni,ni->n", h, wo) / np.sqrt(norm2), 0.0, 1.0)) ** 5
+        out[:, j, 2] = np.where(lit, 0.25 / np.where(lit, wo[:, 2], 1.0), 0.0)
+    return out
 
 
 # --------------------------------------------------------------------------
