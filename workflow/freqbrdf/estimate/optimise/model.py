@@ -22,8 +22,8 @@ from freqbrdf.sphere.sh import recurrence_tables
 from freqbrdf.util.threads import set_threads
 from freqbrdf.util.validation import check_finite, check_int, check_shape
 
-__all__ = ["ForwardModel", "estimate_light", "model_light", "point_terms", "pair_source_geometry", "model_tables", "light_terms",
-           "refit_light", "forward", "loss_and_gradient", "grid_start"]
+__all__ = ["ForwardModel", "estimate_light", "model_light", "point_terms", "pair_source_geometry", "model_tables",
+           "light_terms", "refit_light", "forward", "loss_and_gradient", "grid_start"]
 
 
 def estimate_light(
@@ -90,10 +90,10 @@ def pair_source_geometry(wo: np.ndarray, incoming: np.ndarray, slot: np.ndarray,
         ``1 / (4 cos theta_o)``; the last is 0 where the source or the view is below the
         horizon, which drops the term.
     """
-    wo = np.asarray(wo, dtype=np.float64)
-    out = np.zeros((wo.shape[0], np.shape(incoming)[1], 3), dtype=dtype)
+    wo, incoming = np.asarray(wo, dtype=np.float64), np.asarray(incoming, dtype=np.float64)
+    out = np.zeros((wo.shape[0], incoming.shape[1], 3), dtype=dtype)
     for j in range(out.shape[1]):  # one source at a time: (N, 3) temporaries, not (N, S, 3)
-        wi = np.asarray(incoming, dtype=np.float64)[slot, j]
+        wi = incoming[slot, j]
         h = wi + wo
         norm2 = np.einsum("ni,ni->n", h, h)
         lit = (wi[:, 2] > 0) & (wo[:, 2] > 0) & (norm2 > 0)

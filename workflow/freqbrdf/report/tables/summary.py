@@ -102,9 +102,12 @@ def run_summary_html(facts: Mapping[str, str], claims_table: pd.DataFrame, headl
 _MERGE_MAP_LABELS = {"entropy": "the spectrum entropy", "posterior": "the expected error of its fit's posterior"}
 
 
-def _merge_maps() -> str:
-    """Which map each merged method of the registry merges by, for Table 6's caption."""
-    return "; ".join(f"{m.name}: {_MERGE_MAP_LABELS[m.merged_by]}" for m in METHODS.values() if m.merged_by)
+def _merge_caption() -> str:
+    """Table 6's caption, naming the map each merged method of the registry merges by."""
+    maps = "; ".join(f"{m.name}: {_MERGE_MAP_LABELS[m.merged_by]}" for m in METHODS.values() if m.merged_by)
+    return ("One texture set per object from all its captures: each texel takes the parameters of the "
+            f"capture whose uncertainty is lowest there ({maps}), against the mean of the separate captures' "
+            "estimates; parameter MSE as in Table 2. The paper merged Mitsuba's results by the entropy. ")
 
 
 @dataclass(frozen=True)
@@ -195,11 +198,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "full optimisation from a constant (mitsuba) and our textures alone (freq). Total time "
                 "includes the initialisation. Rows without a method of ours are not in this pipeline. " + scope,
                 finetune_table(df, paper, boot=context.boot)),
-        Summary("table6_merge", "Table 6: captures merged by uncertainty",
-                "One texture set per object from all its captures: each texel takes the parameters of the "
-                f"capture whose uncertainty is lowest there ({_merge_maps()}), against the mean of the separate "
-                "captures' estimates; parameter MSE as in Table 2. The paper merged Mitsuba's results by the "
-                "entropy. " + scope,
+        Summary("table6_merge", "Table 6: captures merged by uncertainty", _merge_caption() + scope,
                 merge_table(df, paper, boot=context.boot)),
         Summary("uncertainty", "Uncertainty: does the entropy rank the errors better than the view count?",
                 _UNCERTAINTY_CAPTION + scope, uncertainty_table(df, context.boot)),
