@@ -87,8 +87,8 @@ def pair_information(jacobian: np.ndarray) -> np.ndarray:
 
 
 def _degrees_of_freedom(pairs: np.ndarray) -> np.ndarray:
-    """``3 n - 5`` of texels with n pairs each (3 channels, 5 parameters), at least 1."""
-    return np.maximum(3 * pairs - N_PARAMS, 1)
+    """``3 n - 5`` of texels with n pairs each (3 channels, 5 parameters); negative below 2 pairs."""
+    return 3 * pairs - N_PARAMS
 
 
 def residual_variance(residual: np.ndarray, slot: np.ndarray, n_slots: int) -> np.ndarray:
@@ -109,7 +109,8 @@ def residual_variance(residual: np.ndarray, slot: np.ndarray, n_slots: int) -> n
         Shape ``(n_slots,)``: at least 1 degree of freedom is assumed, and the variance is at least 1e-12.
     """
     squares = np.bincount(slot, (np.asarray(residual, dtype=np.float64) ** 2).sum(axis=1), minlength=n_slots)
-    return np.maximum(squares / _degrees_of_freedom(np.bincount(slot, minlength=n_slots)), 1e-12)
+    dof = np.maximum(_degrees_of_freedom(np.bincount(slot, minlength=n_slots)), 1)
+    return np.maximum(squares / dof, 1e-12)
 
 
 def pooled_residual_variance(residual: np.ndarray, slot: np.ndarray) -> float:
@@ -123,7 +124,7 @@ def pooled_residual_variance(residual: np.ndarray, slot: np.ndarray) -> float:
     if slot.size == 0:
         raise ValueError("pooled_residual_variance: no pair")
     pairs = np.bincount(slot)
-    dof = max(int(3 * pairs.sum() - N_PARAMS * np.count_nonzero(pairs)), 1)
+    dof = max(int(_degrees_of_freedom(pairs[pairs > 0]).sum()), 1)
     return max(float((np.asarray(residual, dtype=np.float64) ** 2).sum() / dof), 1e-12)
 
 
