@@ -201,18 +201,17 @@ def _masking(alpha, tan2, masking):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
-def _view_weights(view, i, w, d, mu, masking, alpha, tan2, c5):  # pragma: no cover - compiled
+def _view_weights(view, i, w, d, mu, g1, dg1, c5):  # pragma: no cover - compiled
     """``a, b`` and the diffuse factor of `freqbrdf.sphere.lobes.view_table` at the texel's alpha (Hermite
     node ``i``, weights ``w``, ``d`` of `_hermite`) and ``mu = cos theta_o`` (linear), then their
     derivatives in alpha; a one-component table holds the diffuse factor only, ``a`` and ``b``
-    are then the paper's ``(1 - c5) G1m`` and ``c5 G1m``."""
+    are then the paper's ``(1 - c5) G1m`` and ``c5 G1m`` (``g1``, ``dg1``: `_masking` at theta_o)."""
     x = mu * (view.shape[3] - 1)
     j = min(int(x), view.shape[3] - 2)
     tj = x - j
     k = view.shape[2] - 1  # the diffuse factor is the last component
     dif, ddif = _table_point(view, k, i, j, tj, w), _table_point(view, k, i, j, tj, d)
     if k == 0:
-        g1, dg1 = _masking(alpha, tan2, masking)
         return (1.0 - c5) * g1, c5 * g1, dif, (1.0 - c5) * dg1, c5 * dg1, ddif
     return (_table_point(view, 0, i, j, tj, w), _table_point(view, 1, i, j, tj, w), dif,
             _table_point(view, 0, i, j, tj, d), _table_point(view, 1, i, j, tj, d), ddif)
@@ -244,8 +243,8 @@ def _model(m, base, e_pi, r0_dielectric, work, c):  # pragma: no cover - compile
 
 
 @numba.njit(cache=True, inline="always")
-def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, src,
-                texel):  # pragma: no cover - compiled
+def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo,
+                shade):  # pragma: no cover - compiled
     """Per channel of pair n, the specular term split as ``R0 work[0] + work[1]``, in ``work[2]``,
     ``work[3]`` their derivatives in alpha, in ``work[4]`` and ``work[5]`` the diffuse factor d and
     its derivative.
@@ -253,59 +252,85 @@ def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd
     With an empty ``view``, the paper's ``F G1m Spec``: ``work[0] = (1 - c5) G1m Spec``,
     ``work[1] = c5 G1m Spec``, ``d = 1``; otherwise ``a Spec``, ``b Spec`` and ``d``
     (`freqbrdf.sphere.lobes.view_table`; ``vi``, ``vw``, ``vd`` from `_hermite` at alpha), ``a`` and
-    ``b`` the paper's if the table holds ``d`` only. Then each point source of ``texel`` in ``src``
-    adds its own microfacet term (`_point_source`).
+    ``b`` the paper's if the table holds ``d`` only. Then the point sources add their own
+    microfacet terms (`_point_sources`, ``shade`` from `_source_shading` of the pair's texel).
     """
+    if view.shape[0] == 0 or view.shape[2] == 1 or shade.shape[0]:
+        g1, dg1 = _masking(alpha, tan2[n], masking)  # once: the paper's weight and the sources both need it
+    else:
+        g1, dg1 = 1.0, 0.0
     if view.shape[0] == 0:
-        g1, dg1 = _masking(alpha, tan2[n], masking)
         c5 = schlick[n]
         u, v, du, dv, dif, ddif = (1.0 - c5) * g1, c5 * g1, (1.0 - c5) * dg1, c5 * dg1, 1.0, 0.0
     else:
-        u, v, dif, du, dv, ddif = _view_weights(view, vi, vw, vd, 1.0 / np.sqrt(1.0 + tan2[n]), masking, alpha,
-                                                tan2[n], schlick[n])
-    for c in range(3):
-        work[4, c] = dif
-        work[5, c] = ddif
-        s = 0.0
-        d = 0.0
-        for l in range(f.shape[0]):
-            s += f[l] * light[n, l, c]
-            d += fd[l] * light[n, l, c]
-        work[0, c] = u * s
-        work[1, c] = v * s
-        work[2, c] = du * s + u * d
-        work[3, c] = dv * s + v * d
-    if src.shape[1]:
-        gm, dgm = _masking(alpha, tan2[n], masking)
-        for j in range(src.shape[1]):
-            _point_source(alpha, geo, n, gm, dgm, src, texel, j, work)
+        u, v, dif, du, dv, ddif = _view_weights(view, vi, vw, vd, 1.0 / np.sqrt(1.0 + tan2[n]), g1, dg1,
+                                                schlick[n])
+    # the three channels' sums side by side: six independent chains of additions, where one
+    # channel after another waits on each addition's latency (the same order per channel)
+    s0 = s1 = s2 = d0 = d1 = d2 = 0.0
+    for l in range(f.shape[0]):
+        s0 += f[l] * light[n, l, 0]
+        s1 += f[l] * light[n, l, 1]
+        s2 += f[l] * light[n, l, 2]
+        d0 += fd[l] * light[n, l, 0]
+        d1 += fd[l] * light[n, l, 1]
+        d2 += fd[l] * light[n, l, 2]
+    _pair_specular(u, v, du, dv, dif, ddif, s0, d0, work, 0)
+    _pair_specular(u, v, du, dv, dif, ddif, s1, d1, work, 1)
+    _pair_specular(u, v, du, dv, dif, ddif, s2, d2, work, 2)
+    if shade.shape[0]:
+        _point_sources(alpha, geo, n, g1, dg1, shade, work)
 
 
 @numba.njit(cache=True, inline="always")
-def _point_source(alpha, geo, n, gm, dgm, src, s, j, work):  # pragma: no cover - compiled
-    """Add point source j of texel s to the specular parts of pair n (`_pair_terms`): the GGX
+def _pair_specular(u, v, du, dv, dif, ddif, s, d, work, c):  # pragma: no cover - compiled
+    """Channel c of `_pair_terms`' ``work`` from the lobe-filtered light ``s`` and its derivative ``d``."""
+    work[0, c] = u * s
+    work[1, c] = v * s
+    work[2, c] = du * s + u * d
+    work[3, c] = dv * s + v * d
+    work[4, c] = dif
+    work[5, c] = ddif
+
+
+@numba.njit(cache=True, inline="always")
+def _source_shading(alpha, src, s, shade):  # pragma: no cover - compiled
+    """Per point source j of texel s, its power times ``G1(theta_i)`` at alpha in ``shade[j, :3]``
+    and times ``dG1/dalpha`` in ``shade[j, 3:]``: the same for every pair of the texel."""
+    for j in range(shade.shape[0]):
+        gi, dgi = _masking(alpha, src[s, j, 3], True)  # src[s, j, 3] is 0 without shadowing: G1 = 1
+        for c in range(3):
+            shade[j, c] = src[s, j, 4 + c] * gi
+            shade[j, 3 + c] = src[s, j, 4 + c] * dgi
+
+
+@numba.njit(cache=True, inline="always")
+def _point_sources(alpha, geo, n, gm, dgm, shade, work):  # pragma: no cover - compiled
+    """Add the point sources to the specular parts of pair n (`_pair_terms`): each source's GGX
     microfacet BRDF times cos theta_i, ``D G1(theta_i) G1m F / (4 cos theta_o)`` with Schlick's
-    ``F = R0 (1 - c5h) + c5h`` at the half vector, times the source's power; ``geo[n, j]`` the
+    ``F = R0 (1 - c5h) + c5h`` at the half vector, times its power; ``geo[n, j]`` the
     half vector's ``sin^2 theta_h``, ``c5h`` and ``1 / (4 cos theta_o)``
-    (`freqbrdf.estimate.optimise.model.pair_source_geometry`), ``gm``, ``dgm`` G1m and its derivative."""
-    inv4o = geo[n, j, 2]
-    if inv4o <= 0.0:
-        return
-    sin2_h = geo[n, j, 0]
-    c5h = geo[n, j, 1]
+    (`freqbrdf.estimate.optimise.model.pair_source_geometry`), ``shade`` the power times G1 and
+    its derivative (`_source_shading`), ``gm``, ``dgm`` G1m and its derivative."""
     a2 = alpha * alpha
-    t = sin2_h + (1.0 - sin2_h) * a2
-    ndf = a2 / (np.pi * t * t)
-    dndf = 2.0 * alpha / (np.pi * t * t) * (1.0 - 2.0 * a2 * (1.0 - sin2_h) / t)
-    gi, dgi = _masking(alpha, src[s, j, 3], True)  # src[s, j, 3] is 0 without shadowing: G1 = 1
-    q = ndf * gi * gm * inv4o
-    dq = (dndf * gi * gm + ndf * dgi * gm + ndf * gi * dgm) * inv4o
-    for c in range(3):
-        power = src[s, j, 4 + c]
-        work[0, c] += power * q * (1.0 - c5h)
-        work[1, c] += power * q * c5h
-        work[2, c] += power * dq * (1.0 - c5h)
-        work[3, c] += power * dq * c5h
+    for j in range(shade.shape[0]):
+        inv4o = geo[n, j, 2]
+        if inv4o <= 0.0:
+            continue
+        sin2_h = geo[n, j, 0]
+        c5h = geo[n, j, 1]
+        inv_t = 1.0 / (sin2_h + (1.0 - sin2_h) * a2)
+        ndf = a2 * inv_t * inv_t / np.pi * inv4o  # D / (4 cos theta_o)
+        dndf = 2.0 * alpha * inv_t * inv_t / np.pi * (1.0 - 2.0 * a2 * (1.0 - sin2_h) * inv_t) * inv4o
+        q = ndf * gm
+        dq = dndf * gm + ndf * dgm
+        for c in range(3):
+            value = shade[j, c] * q
+            slope = shade[j, c] * dq + shade[j, 3 + c] * q
+            work[0, c] += value * (1.0 - c5h)
+            work[1, c] += value * c5h
+            work[2, c] += slope * (1.0 - c5h)
+            work[3, c] += slope * c5h
 
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
@@ -319,18 +344,20 @@ def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
         work = np.empty((6, 3))  # per channel: the model's view-dependent factors and their derivatives (`_pair_terms`)
+        shade = np.empty((src.shape[1], 6))  # per point source: power times G1 and its derivative (`_source_shading`)
         signs = np.empty((2, 3))  # per channel: sum of signs times the diffuse factor, times the specular rise
         for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
             r = x[s, 3]
             m = x[s, 4]
             alpha = max(r * r, alpha_min)
             _lobe(alpha, alpha_min, lobe, f, fd)
+            _source_shading(alpha, src, s, shade)
             vi, vw, vd = _view_basis(alpha, alpha_min, view)
             signs[:] = 0.0
             sum_d = 0.0
             total = 0.0
             for n in range(start[s], start[s + 1]):
-                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, src, s)
+                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade)
                 for c in range(3):
                     value = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c)
                     if write_model:
@@ -360,6 +387,7 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
         fd = np.empty(n_deg)
         base = np.empty(3)
         work = np.empty((6, 3))
+        shade = np.empty((src.shape[1], 6))
         rise = np.empty((max_pairs, 3))  # the specular term's two parts (`_pair_terms`)
         fixed = np.empty((max_pairs, 3))
         diffuse = np.empty((max_pairs, 3))  # d E / pi
@@ -372,9 +400,10 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
             for r in r_grid:
                 alpha = max(r * r, alpha_min)
                 _lobe(alpha, alpha_min, lobe, f, fd)
+                _source_shading(alpha, src, s, shade)
                 vi, vw, vd = _view_basis(alpha, alpha_min, view)
                 for i in range(k):
-                    _pair_terms(alpha, f, fd, light, lo + i, schlick, tan2, masking, view, vi, vw, vd, work, geo, src, s)
+                    _pair_terms(alpha, f, fd, light, lo + i, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade)
                     for c in range(3):
                         rise[i, c] = work[0, c]
                         fixed[i, c] = work[1, c]
@@ -405,18 +434,19 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
 
 @numba.njit(cache=True, inline="always")
 def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
-                geo, src, nb_start, nb, x, data_scale, tv_scale, f, fd, work):  # pragma: no cover - compiled
+                geo, src, nb_start, nb, x, data_scale, tv_scale, f, fd, work, shade):  # pragma: no cover - compiled
     """Objective of texel s at parameters ``xs`` (5,): its L1 data term times ``data_scale`` plus
     ``tv_scale`` times the TV of its edges, the neighbours held at ``x`` (S, 5); ``f``, ``fd``
-    (L,) and ``work`` (6, 3) are scratch."""
+    (L,), ``work`` (6, 3) and ``shade`` (P, 6) are scratch."""
     cost = 0.0
     if s < start.shape[0] - 1:
         alpha = max(xs[3] * xs[3], alpha_min)
         _lobe(alpha, alpha_min, lobe, f, fd)
+        _source_shading(alpha, src, s, shade)
         vi, vw, vd = _view_basis(alpha, alpha_min, view)
         m = xs[4]
         for n in range(start[s], start[s + 1]):
-            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, src, s)
+            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade)
             for c in range(3):
                 cost += abs(_model(m, xs[c], e_pi[s, c], r0_dielectric, work, c) - radiance[n, c])
         cost *= data_scale
@@ -459,8 +489,8 @@ def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, inline="always")
 def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
-                 geo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, h,
-                 g):  # pragma: no cover - compiled
+                 geo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, shade,
+                 h, g):  # pragma: no cover - compiled
     """Texel s's objective at ``x[s]``, and in ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton
     matrix and gradient of its reweighted quadratic (see `lm_sweep`); the rest is scratch."""
     h[:] = 0.0
@@ -478,9 +508,10 @@ def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
         alpha = max(r * r, alpha_min)
         dalpha = 2.0 * max(r, np.sqrt(alpha_min))
         _lobe(alpha, alpha_min, lobe, f, fd)
+        _source_shading(alpha, src, s, shade)
         vi, vw, vd = _view_basis(alpha, alpha_min, view)
         for p in range(lo, hi):
-            _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work, geo, src, s)
+            _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade)
             for c in range(3):
                 res = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c) - radiance[p, c]
                 cost += abs(res)
@@ -558,6 +589,7 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
         work = np.empty((6, 3))
+        shade = np.empty((src.shape[1], 6))
         h = np.empty((5, 5))
         a = np.empty((5, 5))
         g = np.empty(5)
@@ -568,7 +600,7 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
             s = texels[i]
             cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
                                 r0_dielectric, lobe, view, geo, src, nb_start, nb, data_scale, tv_scale, irls_floor,
-                                tv_floor, f, fd, work, h, g)
+                                tv_floor, f, fd, work, shade, h, g)
             cost_out[i] = cost
             lam_s = lam[s]
             for _ in range(tries):
@@ -583,7 +615,7 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                     trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
                 new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
                                   r0_dielectric, lobe, view, geo, src, nb_start, nb, x, data_scale, tv_scale, f, fd,
-                                  work)
+                                  work, shade)
                 if new < cost:
                     x[s, :] = trial
                     lam_s = max(lam_s * _LM_DOWN, _LM_MIN)
