@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from freqbrdf.util.io import atomic_path
 from freqbrdf.util.colour import to_srgb, tonemap
+
+if TYPE_CHECKING:  # pandas only in annotations: the estimator's jobs, which import this module, do not load it
+    import pandas as pd
 
 
 def pyplot():

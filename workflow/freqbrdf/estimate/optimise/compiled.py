@@ -200,7 +200,7 @@ def _masking(alpha, tan2, masking):  # pragma: no cover - compiled
     return g1, -g1 * g1 * alpha * tan2 / (2.0 * root)
 
 
-@numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
+@numba.njit(cache=True, inline="always")
 def _view_weights(view, i, w, d, mu, g1, dg1, c5):  # pragma: no cover - compiled
     """``a, b`` and the diffuse factor of `freqbrdf.sphere.lobes.view_table` at the texel's alpha (Hermite
     node ``i``, weights ``w``, ``d`` of `_hermite`) and ``mu = cos theta_o`` (linear), then their
@@ -313,6 +313,9 @@ def _point_sources(alpha, geo, n, gm, dgm, shade, work):  # pragma: no cover - c
     (`freqbrdf.estimate.optimise.model.pair_source_geometry`), ``shade`` the power times G1 and
     its derivative (`_source_shading`), ``gm``, ``dgm`` G1m and its derivative."""
     a2 = alpha * alpha
+    # per channel, the sources' sum of power G1 D / (4 cos theta_o) and of its derivative in
+    # alpha, each split by Schlick's (1 - c5h) and c5h: in scalars, not through ``work``
+    v0 = v1 = v2 = w0 = w1 = w2 = dv0 = dv1 = dv2 = dw0 = dw1 = dw2 = 0.0
     for j in range(shade.shape[0]):
         inv4o = geo[n, j, 2]
         if inv4o <= 0.0:
@@ -324,13 +327,47 @@ def _point_sources(alpha, geo, n, gm, dgm, shade, work):  # pragma: no cover - c
         dndf = 2.0 * alpha * inv_t * inv_t / np.pi * (1.0 - 2.0 * a2 * (1.0 - sin2_h) * inv_t) * inv4o
         q = ndf * gm
         dq = dndf * gm + ndf * dgm
-        for c in range(3):
-            value = shade[j, c] * q
-            slope = shade[j, c] * dq + shade[j, 3 + c] * q
-            work[0, c] += value * (1.0 - c5h)
-            work[1, c] += value * c5h
-            work[2, c] += slope * (1.0 - c5h)
-            work[3, c] += slope * c5h
+        value, slope = shade[j, 0] * q, shade[j, 0] * dq + shade[j, 3] * q
+        v0 += value * (1.0 - c5h)
+        w0 += value * c5h
+        dv0 += slope * (1.0 - c5h)
+        dw0 += slope * c5h
+        value, slope = shade[j, 1] * q, shade[j, 1] * dq + shade[j, 4] * q
+        v1 += value * (1.0 - c5h)
+        w1 += value * c5h
+        dv1 += slope * (1.0 - c5h)
+        dw1 += slope * c5h
+        value, slope = shade[j, 2] * q, shade[j, 2] * dq + shade[j, 5] * q
+        v2 += value * (1.0 - c5h)
+        w2 += value * c5h
+        dv2 += slope * (1.0 - c5h)
+        dw2 += slope * c5h
+    _add_sources(v0, w0, dv0, dw0, work, 0)
+    _add_sources(v1, w1, dv1, dw1, work, 1)
+    _add_sources(v2, w2, dv2, dw2, work, 2)
+
+
+@numba.njit(cache=True, inline="always")
+def _add_sources(v, w, dv, dw, work, c):  # pragma: no cover - compiled
+    """Add channel c of `_point_sources`' sums to ``work``."""
+    work[0, c] += v
+    work[1, c] += w
+    work[2, c] += dv
+    work[3, c] += dw
+
+
+@numba.njit(cache=True, inline="always")
+def _residual(m, x, s, e_pi, r0_dielectric, work, radiance, n, c, write_model, model):  # pragma: no cover - compiled
+    """Channel c of pair n in `l1_kernel`: the residual's sign, the residual, and the sign times
+    the model's derivative in alpha; the model radiance into ``model`` if ``write_model``."""
+    value = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c)
+    if write_model:
+        model[n, c] = value
+    res = value - radiance[n, c]
+    g = np.sign(res)
+    slope = ((r0_dielectric * (1.0 - m) + m * x[s, c]) * work[2, c] + work[3, c]
+             + (1.0 - m) * x[s, c] * e_pi[s, c] * work[5, c])
+    return g, res, g * slope
 
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
@@ -353,22 +390,29 @@ def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
             _lobe(alpha, alpha_min, lobe, f, fd)
             _source_shading(alpha, src, s, shade)
             vi, vw, vd = _view_basis(alpha, alpha_min, view)
-            signs[:] = 0.0
             sum_d = 0.0
             total = 0.0
+            # the sums over pairs in scalars, not in an array the compiler must store at every pair
+            diffuse0 = diffuse1 = diffuse2 = rise0 = rise1 = rise2 = 0.0
             for n in range(start[s], start[s + 1]):
                 _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade)
-                for c in range(3):
-                    value = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c)
-                    if write_model:
-                        model[n, c] = value
-                    res = value - radiance[n, c]
-                    g = np.sign(res)
-                    total += abs(res)
-                    signs[0, c] += g * work[4, c]
-                    signs[1, c] += g * work[0, c]
-                    sum_d += g * ((r0_dielectric * (1.0 - m) + m * x[s, c]) * work[2, c] + work[3, c]
-                                  + (1.0 - m) * x[s, c] * e_pi[s, c] * work[5, c])
+                g0, res0, d0 = _residual(m, x, s, e_pi, r0_dielectric, work, radiance, n, 0, write_model, model)
+                g1, res1, d1 = _residual(m, x, s, e_pi, r0_dielectric, work, radiance, n, 1, write_model, model)
+                g2, res2, d2 = _residual(m, x, s, e_pi, r0_dielectric, work, radiance, n, 2, write_model, model)
+                total += abs(res0)
+                total += abs(res1)
+                total += abs(res2)
+                sum_d += d0
+                sum_d += d1
+                sum_d += d2
+                diffuse0 += g0 * work[4, 0]
+                diffuse1 += g1 * work[4, 1]
+                diffuse2 += g2 * work[4, 2]
+                rise0 += g0 * work[0, 0]
+                rise1 += g1 * work[0, 1]
+                rise2 += g2 * work[0, 2]
+            signs[0, 0], signs[0, 1], signs[0, 2] = diffuse0, diffuse1, diffuse2
+            signs[1, 0], signs[1, 1], signs[1, 2] = rise0, rise1, rise2
             grad[s, 4] = 0.0
             for c in range(3):
                 grad[s, c] = (1.0 - m) * e_pi[s, c] * signs[0, c] + m * signs[1, c]
