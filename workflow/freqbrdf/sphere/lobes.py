@@ -80,16 +80,25 @@ def ggx_lobe_spectrum(alpha: np.ndarray, lmax: int, nodes: int = 2048) -> tuple[
     xi, w = _unit_interval_nodes(nodes)
     den = 1.0 + (a[:, None] ** 2 - 1.0) * xi
     t = 2.0 * (1.0 - xi) / den - 1.0  # cos theta, (A, n)
-    dt = -4.0 * a[:, None] * xi * (1.0 - xi) / den**2  # dt / dalpha
+    dt_w = (-4.0 * w * xi * (1.0 - xi)) * a[:, None] / den**2  # dt / dalpha times the quadrature weights
     f = np.empty((a.size, lmax + 1))
     df = np.empty((a.size, lmax + 1))
-    p_prev, p = np.ones_like(t), t  # P_0, P_1
+    p_prev, p = np.ones_like(t), t.copy()  # P_0, P_1
     dp_prev, dp = np.zeros_like(t), np.ones_like(t)  # P_l' by P'_{l+1} = P'_{l-1} + (2l + 1) P_l
+    scratch = np.empty_like(t)
     f[:, 0], df[:, 0] = 1.0, 0.0
     for l in range(1, lmax + 1):
         f[:, l] = p @ w
-        df[:, l] = (dp * dt) @ w
-        p_prev, p, dp_prev, dp = p, ((2 * l + 1) * t * p - l * p_prev) / (l + 1), dp, dp_prev + (2 * l + 1) * p
+        df[:, l] = np.einsum("an,an->a", dp, dt_w)
+        # the recurrences in place, each into the buffer of degree l - 1 (every job builds this
+        # table: (A, n) temporaries per degree took twice as long)
+        np.multiply(t, p, out=scratch)
+        scratch *= (2 * l + 1) / (l + 1)
+        p_prev *= -l / (l + 1)
+        p_prev += scratch
+        np.multiply(p, 2 * l + 1, out=scratch)
+        dp_prev += scratch
+        p_prev, p, dp_prev, dp = p, p_prev, dp, dp_prev
     return f, df
 
 
