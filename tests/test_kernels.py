@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from freqbrdf.estimate.optimise import compiled, kernels
+from freqbrdf.estimate.optimise import compiled, compiled_light, kernels
 from freqbrdf.sphere.sh import real_sh, recurrence_tables, sh_degrees
 
 
@@ -35,3 +35,9 @@ def test_small_cholesky_solve_matches_numpy() -> None:
         assert compiled._solve_spd5(a.copy(), rhs, out)
         np.testing.assert_allclose(out, np.linalg.solve(a, rhs), rtol=1e-9, atol=1e-12)
     assert not compiled._solve_spd5(-np.eye(5), rhs, out)  # not positive definite
+
+
+def test_the_light_kernels_compile_with_the_model_kernels_settings() -> None:
+    # each file keeps its own copy: numba's cache would not see a change to the other file's
+    assert compiled_light._FAST == compiled._FAST
+    assert compiled_light._TEXELS == compiled._TEXELS

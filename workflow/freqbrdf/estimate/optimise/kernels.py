@@ -1,6 +1,7 @@
 """The gradient-descent estimator's compiled kernels, as Python sees them: checked arguments.
 
-Each kernel (`freqbrdf.estimate.optimise.compiled`) fuses a computation that NumPy would
+Each kernel (`freqbrdf.estimate.optimise.compiled`, the light's in
+`freqbrdf.estimate.optimise.compiled_light`) fuses a computation that NumPy would
 spread over several texture-sized temporaries. The tests compare each with an independent
 evaluation: `freqbrdf.sphere.sh.real_sh` (degree sums), a direct evaluation of the model and
 central differences (loss and gradient), dense quadrature of the environment (shadowing
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from freqbrdf.estimate.optimise import compiled
+from freqbrdf.estimate.optimise import compiled, compiled_light
 from freqbrdf.sphere.brdf import ALPHA_MIN, R0_DIELECTRIC
 
 __all__ = ["PairData", "KernelModel", "LmStep", "degree_sums", "shadowing_factors", "basis_factors", "table_sums", "l1_loss_gradient",
@@ -141,7 +142,7 @@ def degree_sums(
     """
     if out.shape[2] != 3 or lg.shape[2] != 3:
         raise ValueError(f"degree_sums needs RGB expansions, got lg {lg.shape} and out {out.shape}")
-    compiled.degree_sums_kernel(lg, rows, pairs, mirror, a, b, out)
+    compiled_light.degree_sums_kernel(lg, rows, pairs, mirror, a, b, out)
 
 
 def shadowing_factors(normals: np.ndarray, directions: np.ndarray, alpha: np.ndarray, out: np.ndarray) -> None:
@@ -162,7 +163,7 @@ def shadowing_factors(normals: np.ndarray, directions: np.ndarray, alpha: np.nda
     out : numpy.ndarray
         Shape ``(T, Q)``, float32, written in place.
     """
-    compiled.shadowing_kernel(normals, directions, alpha, out)
+    compiled_light.shadowing_kernel(normals, directions, alpha, out)
 
 
 def basis_factors(normals: np.ndarray, directions: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
@@ -180,7 +181,7 @@ def basis_factors(normals: np.ndarray, directions: np.ndarray, u: np.ndarray, ou
     out : numpy.ndarray
         Shape ``(T R, Q)``, float32, written in place: row ``t R + k`` is ``u_k`` of normal t.
     """
-    compiled.basis_factors_kernel(normals, directions, u, out)
+    compiled_light.basis_factors_kernel(normals, directions, u, out)
 
 
 def table_sums(
@@ -213,7 +214,7 @@ def table_sums(
     if out.shape[2] != 3 or coefficients.shape[2] != 3 * out.shape[1] ** 2:
         raise ValueError(f"table_sums needs RGB coefficients of degree {out.shape[1] - 1}, got rows of "
                          f"{coefficients.shape[2]} for output of shape {out.shape}")
-    compiled.table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirror, a, b, out)
+    compiled_light.table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirror, a, b, out)
 
 
 def _table(lobe: np.ndarray | None, terms: np.ndarray) -> np.ndarray:
