@@ -41,3 +41,21 @@ def test_the_light_kernels_compile_with_the_model_kernels_settings() -> None:
     # each file keeps its own copy: numba's cache would not see a change to the other file's
     assert compiled_light._FAST == compiled._FAST
     assert compiled_light._TEXELS == compiled._TEXELS
+
+
+def test_tv_kernel_matches_the_sparse_difference_operator() -> None:
+    rng = np.random.default_rng(3)
+    x = rng.uniform(0.0, 1.0, (40, 5))
+    x[7] = x[8]  # a flat edge: sign 0
+    edges = np.concatenate([rng.integers(0, 40, (120, 2)), [[7, 8]]])
+    edges = edges[edges[:, 0] != edges[:, 1]]
+    op = np.zeros((edges.shape[0], 40))
+    op[np.arange(edges.shape[0]), edges[:, 0]] = 1.0
+    op[np.arange(edges.shape[0]), edges[:, 1]] = -1.0
+    tv, grad = kernels.tv_loss_gradient(x, edges)
+    assert tv == pytest.approx(np.abs(op @ x).sum() / edges.shape[0], rel=1e-14)
+    np.testing.assert_allclose(grad, op.T @ np.sign(op @ x) / edges.shape[0], atol=1e-15)
+    with pytest.raises(ValueError, match=r"edges \(M >= 1, 2\)"):
+        kernels.tv_loss_gradient(x, np.zeros((0, 2), np.int64))
+    with pytest.raises(ValueError, match="edges must index the 40 rows"):
+        kernels.tv_loss_gradient(x, np.array([[0, 40]]))

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["l1_kernel", "grid_kernel", "lm_kernel"]
+__all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "tv_kernel"]
 
 _TEXELS = 64  # texels per parallel iteration (one set of scratch arrays each)
 # Levenberg-Marquardt damping: x 1/3 after a kept step, x 4 after a rejected one, within [1e-6, 1e6]
@@ -550,3 +550,18 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
             lam[s] = lam_s
 
 
+@numba.njit(cache=True)
+def tv_kernel(x, edges, grad):  # pragma: no cover - compiled
+    # serial: each texel's gradient sums its edges in edge order, whatever the threads
+    m = edges.shape[0]
+    total = 0.0
+    grad[:] = 0.0
+    for e in range(m):
+        i, j = edges[e, 0], edges[e, 1]
+        for q in range(x.shape[1]):
+            d = x[i, q] - x[j, q]
+            total += abs(d)
+            step = np.sign(d) / m  # sign(0) = 0: a flat pair pulls neither texel
+            grad[i, q] += step
+            grad[j, q] -= step
+    return total / m

@@ -26,7 +26,7 @@ from freqbrdf.estimate.optimise import compiled, compiled_light
 from freqbrdf.sphere.brdf import ALPHA_MIN, R0_DIELECTRIC
 
 __all__ = ["PairData", "KernelModel", "LmStep", "degree_sums", "shadowing_factors", "basis_factors", "table_sums", "l1_loss_gradient",
-           "grid_search", "lm_sweep"]
+           "grid_search", "lm_sweep", "tv_loss_gradient"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -380,3 +380,30 @@ def lm_sweep(
                        float(step.tv_scale), step.lower, step.upper, float(step.irls_floor), float(step.tv_floor), lam,
                        int(step.tries), cost)
     return cost
+
+
+def tv_loss_gradient(x: np.ndarray, edges: np.ndarray) -> tuple[float, np.ndarray]:
+    """Mean absolute difference over the edges, summed over channels, and its gradient.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Shape ``(T, Q)``, float64: parameter channels per texel.
+    edges : numpy.ndarray
+        Shape ``(M, 2)``, int64, ``M >= 1``: the texel pairs (i, j), each within ``[0, T)``.
+
+    Returns
+    -------
+    tv : float
+        ``(1/M) sum_edges sum_q |x_iq - x_jq|``.
+    grad : numpy.ndarray
+        Shape ``(T, Q)``: its (sub)gradient, ``sign(0) = 0``.
+    """
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    edges = np.ascontiguousarray(edges, dtype=np.int64)
+    if x.ndim != 2 or edges.ndim != 2 or edges.shape[1] != 2 or not edges.shape[0]:
+        raise ValueError(f"x must be (T, Q) and edges (M >= 1, 2), got shapes {x.shape} and {edges.shape}")
+    if edges.min() < 0 or edges.max() >= x.shape[0]:
+        raise ValueError(f"edges must index the {x.shape[0]} rows of x, got {edges.min()}..{edges.max()}")
+    grad = np.empty_like(x)
+    return float(compiled.tv_kernel(x, edges, grad)), grad

@@ -7,10 +7,9 @@ from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
-from scipy import sparse
 
 from freqbrdf.artefacts import Observations
-from freqbrdf.estimate.optimise.kernels import PairData
+from freqbrdf.estimate.optimise.kernels import PairData, tv_loss_gradient
 from freqbrdf.estimate.optimise.settings import DTYPES, N_PARAMS
 from freqbrdf.estimate.shfit import mirror_directions
 from freqbrdf.sphere.brdf import TEXTURES, tan2_theta
@@ -93,9 +92,9 @@ class Problem:
         Shape ``(N,)``, ``dtype``: ``(1 - cos theta_o)^5`` and ``tan^2 theta_o``.
     irradiance_pi : numpy.ndarray
         Shape ``(T_obs, 3)``, float64: ``E / pi`` of the observed texels.
-    tv_operator, tv_adjoint : scipy.sparse.csr_matrix
-        Shapes ``(M, T)`` and ``(T, M)``: ``x_i - x_j`` of each neighbour pair
-        (internal order) and its transpose.
+    tv_edges : numpy.ndarray
+        Shape ``(M, 2)``, int64: the neighbour pairs (i, j) in internal order, whose
+        ``x_i - x_j`` the TV sums.
     nb_start, nb : numpy.ndarray
         Shapes ``(T + 1,)`` and ``(2 M,)``, int64: the neighbours of internal
         texel s are ``nb[nb_start[s]:nb_start[s + 1]]`` (internal order).
@@ -127,8 +126,7 @@ class Problem:
     schlick: np.ndarray
     tan2: np.ndarray
     irradiance_pi: np.ndarray
-    tv_operator: sparse.csr_matrix
-    tv_adjoint: sparse.csr_matrix
+    tv_edges: np.ndarray
     nb_start: np.ndarray
     nb: np.ndarray
     colours: tuple[np.ndarray, np.ndarray]
@@ -151,15 +149,7 @@ class Problem:
 
     def tv(self, xp: np.ndarray) -> tuple[float, np.ndarray]:
         """`total_variation` of internal-order parameters ``xp`` (T, 5) and its gradient."""
-        return _tv(xp, self.tv_operator, self.tv_adjoint)
-
-
-def _difference_operator(neighbours: np.ndarray, n_texels: int) -> sparse.csr_matrix:
-    """Sparse (M, T) matrix taking x to ``x_i - x_j`` for each neighbour pair (i, j)."""
-    m = neighbours.shape[0]
-    rows = np.repeat(np.arange(m), 2)
-    vals = np.tile([1.0, -1.0], m)
-    return sparse.csr_matrix((vals, (rows, neighbours.ravel())), shape=(m, n_texels))
+        return _tv(xp, self.tv_edges)
 
 
 def _adjacency(pairs: np.ndarray, n_texels: int) -> tuple[np.ndarray, np.ndarray]:
@@ -262,7 +252,6 @@ def build_problem(obs: Observations, irradiance: np.ndarray, dtype: str = "float
     position = np.empty(n_tex, dtype=np.int64)
     position[perm] = np.arange(n_tex)
     neighbours = atlas_neighbours(t, resolution)
-    tv_op = _difference_operator(position[neighbours], n_tex)
     nb_start, nb = _adjacency(position[neighbours], n_tex)
     parity = (t[perm] // resolution + t[perm] % resolution) % 2
     return Problem(
@@ -286,8 +275,7 @@ def build_problem(obs: Observations, irradiance: np.ndarray, dtype: str = "float
         schlick=((1.0 - cos_o) ** 5).astype(ftype),
         tan2=tan2_theta(cos_o).astype(ftype),
         irradiance_pi=e[observed] / np.pi,
-        tv_operator=tv_op,
-        tv_adjoint=tv_op.T.tocsr(),
+        tv_edges=np.ascontiguousarray(position[neighbours], dtype=np.int64),
         nb_start=nb_start,
         nb=nb,
         colours=(np.nonzero(parity == 0)[0].astype(np.int64), np.nonzero(parity == 1)[0].astype(np.int64)),
@@ -343,13 +331,11 @@ def check_params(x: np.ndarray, problem: Problem) -> np.ndarray:
     return x
 
 
-def _tv(xp: np.ndarray, op: sparse.csr_matrix, adjoint: sparse.csr_matrix) -> tuple[float, np.ndarray]:
-    """TV and its gradient with a difference operator and its transpose (see `total_variation`)."""
-    if op.shape[0] == 0:
-        return 0.0, np.zeros_like(xp)
-    diff = op @ xp
-    # sign(0) = 0: a flat pair pulls neither texel
-    return float(np.abs(diff).sum() / op.shape[0]), adjoint @ (np.sign(diff) / op.shape[0])
+def _tv(x: np.ndarray, edges: np.ndarray) -> tuple[float, np.ndarray]:
+    """TV and its gradient over the edges (see `total_variation`); 0 without edges."""
+    if edges.shape[0] == 0:
+        return 0.0, np.zeros_like(x, dtype=np.float64)
+    return tv_loss_gradient(x, edges)
 
 
 def total_variation(x: np.ndarray, neighbours: np.ndarray) -> tuple[float, np.ndarray]:
@@ -375,5 +361,4 @@ def total_variation(x: np.ndarray, neighbours: np.ndarray) -> tuple[float, np.nd
     check_shape(nb, "neighbours", (None, 2))
     if nb.size and (nb.min() < 0 or nb.max() >= x.shape[0]):
         raise ValueError(f"neighbours must index the {x.shape[0]} rows of x, got {nb.min()}..{nb.max()}")
-    op = _difference_operator(nb, x.shape[0])
-    return _tv(x, op, op.T.tocsr())
+    return _tv(x, nb)

@@ -265,7 +265,7 @@ def _descend_lm(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings)
     if not settings.sweeps:
         return xp, np.empty(0), light.terms
     step = LmStep(
-        data_scale=1.0 / (3.0 * problem.n_pairs), tv_scale=settings.tv_weight / max(problem.tv_operator.shape[0], 1),
+        data_scale=1.0 / (3.0 * problem.n_pairs), tv_scale=settings.tv_weight / max(problem.tv_edges.shape[0], 1),
         lower=np.array([0.0, 0.0, 0.0, settings.min_roughness, 0.0]), upper=np.ones(N_PARAMS),
         irls_floor=settings.irls_floor, tv_floor=settings.tv_floor, tries=_LM_TRIES,
     )
