@@ -7,7 +7,7 @@ import pytest
 
 from freqbrdf.estimate.optimise.posterior import (PRIOR_PRECISION, expected_error, expected_error_atlas,
                                                   laplace_variance, pair_information, pooled_residual_variance,
-                                                  residual_variance)
+                                                  residual_variance, _texel_information)
 from freqbrdf.report.metrics import parameter_error_map
 
 
@@ -110,3 +110,11 @@ def test_pair_information_is_the_jacobians_gram_matrix_summed_over_channels() ->
     expected = np.stack([sum(np.outer(j[c], j[c]) for c in range(3)) for j in jacobian])
     np.testing.assert_allclose(info, expected, rtol=1e-12)
     assert np.all(np.linalg.eigvalsh(info) > -1e-12)
+
+
+def test_texel_information_in_blocks_is_the_whole_sum() -> None:
+    rng = np.random.default_rng(0)
+    start = np.concatenate([[0], np.cumsum(rng.integers(1, 12, 1000))])
+    jacobian = rng.normal(size=(start[-1], 3, 5))
+    whole = np.add.reduceat(pair_information(jacobian), start[:-1])
+    np.testing.assert_array_equal(_texel_information(jacobian, start, block=33), whole)
