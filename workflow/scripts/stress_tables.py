@@ -7,14 +7,14 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import read_entropy, read_observations, read_posterior_std, read_svbrdf
-from freqbrdf.estimate.optimise.posterior import expected_error_atlas
+from freqbrdf.estimate.optimise.posterior import expected_error
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.report.figures import stress_figure
 from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
-from freqbrdf.report.metrics import parameter_error_map
+from freqbrdf.report.metrics import parameter_error_map, texel_parameter_columns
 from freqbrdf.studies.stress import blocked_light, image_psnr, pair_table, pose_effect_table, region_table, stress_table
 from freqbrdf.report.tables.display import fmt, method_label
 from freqbrdf.report.tables.render import html_page, to_html, to_markdown
@@ -32,7 +32,8 @@ def capture_arrays(smk, index):
     truth = read_svbrdf(dict(zip(TEXTURES, smk.input.truth[k * index : k * (index + 1)])))
     estimates = dict(zip(p.methods, smk.input.estimates[n * index : n * (index + 1)]))
     error = {m: parameter_error_map(truth, read_svbrdf(d)).ravel()[texels] for m, d in estimates.items()}
-    uncertainty |= {f"posterior_{m}": expected_error_atlas(read_posterior_std(d)).ravel()[texels]
+    # as rule metrics scores it: the expected error of the scored texels' posterior deviations
+    uncertainty |= {f"posterior_{m}": expected_error(texel_parameter_columns(read_posterior_std(d), texels) ** 2)
                     for m, d in estimates.items() if METHODS[m].has_posterior}
     return obs, texels, uncertainty, error
 
