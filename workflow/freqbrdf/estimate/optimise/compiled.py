@@ -147,8 +147,8 @@ def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd
     else:
         u, v, dif, du, dv, ddif = _view_weights(view, vi, vw, vd, 1.0 / np.sqrt(1.0 + tan2[n]), g1, dg1,
                                                 schlick[n])
-    # the three channels' sums side by side: six independent chains of additions, where one
-    # channel after another waits on each addition's latency (the same order per channel)
+    # the three channels' sums side by side: six independent chains of additions instead of two
+    # at a time waiting on each addition's latency; each sum keeps its order
     s0 = s1 = s2 = d0 = d1 = d2 = 0.0
     for l in range(f.shape[0]):
         s0 += f[l] * light[n, l, 0]
