@@ -180,10 +180,10 @@ def _source_shading(alpha, src, s, shade):  # pragma: no cover - compiled
     """Per point source j of texel s, its power times ``G1(theta_i)`` at alpha in ``shade[j, :3]``
     and times ``dG1/dalpha`` in ``shade[j, 3:]``: the same for every pair of the texel."""
     for j in range(shade.shape[0]):
-        gi, dgi = _masking(alpha, src[s, j, 3], True)  # src[s, j, 3] is 0 without shadowing: G1 = 1
+        gi, dgi = _masking(alpha, src[s, j, 0], True)  # src[s, j, 0] is 0 without shadowing: G1 = 1
         for c in range(3):
-            shade[j, c] = src[s, j, 4 + c] * gi
-            shade[j, 3 + c] = src[s, j, 4 + c] * dgi
+            shade[j, c] = src[s, j, 1 + c] * gi
+            shade[j, 3 + c] = src[s, j, 1 + c] * dgi
 
 
 @numba.njit(cache=True, inline="always")
@@ -252,6 +252,14 @@ def _residual(m, x, s, e_pi, r0_dielectric, work, radiance, n, c, write_model, m
     return g, res, g * slope
 
 
+@numba.njit(cache=True, inline="always")
+def _colour_gradient(m, x, s, e_pi, r0_dielectric, diffuse, rise, c, grad):  # pragma: no cover - compiled
+    """Texel s's gradient in base colour c, and channel c's part of it in metallic, from the sums over
+    its pairs of the residuals' signs times the diffuse factor (``diffuse``) and the specular rise."""
+    grad[s, c] = (1.0 - m) * e_pi[s, c] * diffuse + m * rise
+    grad[s, 4] += -x[s, c] * e_pi[s, c] * diffuse + (x[s, c] - r0_dielectric) * rise
+
+
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
 def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, geo,
               src, grad, loss, model):  # pragma: no cover - compiled
@@ -264,7 +272,6 @@ def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
         fd = np.empty(n_deg)
         work = np.empty((6, 3))  # per channel: the model's view-dependent factors and their derivatives (`_pair_terms`)
         shade = np.empty((src.shape[1], 6))  # per point source: power times G1 and its derivative (`_source_shading`)
-        signs = np.empty((2, 3))  # per channel: sum of signs times the diffuse factor, times the specular rise
         for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
             r = x[s, 3]
             m = x[s, 4]
@@ -293,12 +300,10 @@ def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
                 rise0 += g0 * work[0, 0]
                 rise1 += g1 * work[0, 1]
                 rise2 += g2 * work[0, 2]
-            signs[0, 0], signs[0, 1], signs[0, 2] = diffuse0, diffuse1, diffuse2
-            signs[1, 0], signs[1, 1], signs[1, 2] = rise0, rise1, rise2
             grad[s, 4] = 0.0
-            for c in range(3):
-                grad[s, c] = (1.0 - m) * e_pi[s, c] * signs[0, c] + m * signs[1, c]
-                grad[s, 4] += -x[s, c] * e_pi[s, c] * signs[0, c] + (x[s, c] - r0_dielectric) * signs[1, c]
+            _colour_gradient(m, x, s, e_pi, r0_dielectric, diffuse0, rise0, 0, grad)
+            _colour_gradient(m, x, s, e_pi, r0_dielectric, diffuse1, rise1, 1, grad)
+            _colour_gradient(m, x, s, e_pi, r0_dielectric, diffuse2, rise2, 2, grad)
             grad[s, 3] = sum_d * 2.0 * max(r, np.sqrt(alpha_min))
             loss[s] = total
 

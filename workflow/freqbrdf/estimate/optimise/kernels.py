@@ -70,8 +70,8 @@ class KernelModel:
         Point sources outside the SH light (`freqbrdf.estimate.light.extract_point_sources`):
         ``geometry`` (N, P, 3), per pair and source its half vector's ``sin^2 theta_h``,
         ``c5h`` and ``1 / (4 cos theta_o)`` (`freqbrdf.estimate.optimise.model.pair_source_geometry`),
-        and ``src`` (S, P, 7), per texel and source the direction in the texel's frame,
-        ``tan^2 theta_i`` (0: no shadowing) and the power per channel. Each adds the exact GGX microfacet term
+        and ``src`` (S, P, 4), per texel and source ``tan^2 theta_i`` (0: no shadowing) and the
+        power per channel. Each adds the exact GGX microfacet term
         to the specular parts ``R0 a + b``. None: no point sources.
     alpha_min, r0_dielectric : float
         Clamp of alpha (`freqbrdf.sphere.brdf.ALPHA_MIN`) and the dielectric's normal
@@ -239,16 +239,16 @@ def _view(view: np.ndarray | None) -> np.ndarray:
 
 def _point(point: tuple[np.ndarray, np.ndarray] | None, start: np.ndarray, dtype: np.dtype
            ) -> tuple[np.ndarray, np.ndarray]:
-    """``point`` (``geometry`` (N, P, 3), ``src`` (S, P, 7)) checked against the pairs and texels of
+    """``point`` (``geometry`` (N, P, 3), ``src`` (S, P, 4)) checked against the pairs and texels of
     ``start``; None: no point sources (an empty geometry of ``dtype``, the pairs', so that the
     kernels compile once per dtype)."""
     if point is None:
-        return np.zeros((0, 0, 3), dtype), np.zeros((start.shape[0] - 1, 0, 7))
+        return np.zeros((0, 0, 3), dtype), np.zeros((start.shape[0] - 1, 0, 4))
     geometry, src = np.ascontiguousarray(point[0]), np.ascontiguousarray(point[1], np.float64)
     if (geometry.shape != (start[-1], src.shape[1] if src.ndim == 3 else -1, 3)
             or geometry.dtype not in (np.float32, np.float64) or src.ndim != 3
-            or src.shape[0] != start.shape[0] - 1 or src.shape[2] != 7):
-        raise ValueError(f"point must be (geometry (N, P, 3), src (S, P, 7)) for {start.shape[0] - 1} texels and "
+            or src.shape[0] != start.shape[0] - 1 or src.shape[2] != 4):
+        raise ValueError(f"point must be (geometry (N, P, 3), src (S, P, 4)) for {start.shape[0] - 1} texels and "
                          f"{start[-1]} pairs, got {geometry.dtype} shape {geometry.shape} and shape {src.shape}")
     return geometry, src
 

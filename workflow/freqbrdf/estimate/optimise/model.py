@@ -55,8 +55,8 @@ def point_terms(
     """The point sources of `freqbrdf.estimate.optimise.kernels.KernelModel` for ``sources``.
 
     Per pair and source, the geometry of its half vector, which no parameter changes
-    (`pair_source_geometry`); per observed texel (internal order) and source, its direction in
-    the texel's frame, ``tan^2 theta_i`` (0 without ``shadowing``: G1 = 1) and its power.
+    (`pair_source_geometry`); per observed texel (internal order) and source, ``tan^2 theta_i``
+    (0 without ``shadowing``: G1 = 1) and its power.
     None if there are no sources."""
     if sources is None or not len(sources.power):
         return None
@@ -65,7 +65,7 @@ def point_terms(
     tan2_i = tan2_theta(np.clip(cos_i, 1e-6, 1.0)) if shadowing else np.zeros_like(cos_i)
     power = np.broadcast_to(sources.power[None], cos_i.shape + (3,))
     return (pair_source_geometry(problem.wo_local, local, problem.pair_slot, problem.dtype),
-            np.concatenate([local, tan2_i[..., None], power], axis=2))
+            np.concatenate([tan2_i[..., None], power], axis=2))
 
 
 def pair_source_geometry(wo: np.ndarray, incoming: np.ndarray, slot: np.ndarray, dtype="float32") -> np.ndarray:
