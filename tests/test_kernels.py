@@ -43,6 +43,23 @@ def test_the_light_kernels_compile_with_the_model_kernels_settings() -> None:
     assert compiled_light._TEXELS == compiled._TEXELS
 
 
+def test_every_compiled_helper_fixes_its_own_fast_math_flags() -> None:
+    # numba compiles a helper that is neither inlined nor a kernel once per signature, with the
+    # fast-math flags of the kernel that first calls it unless it sets its own: l1_kernel's grid
+    # start gave other gradients (sphere/sky: up to 1e-5 of their sum) when l1_kernel, not
+    # grid_kernel, was the first to compile _hermite in a process, and the cache kept that order's code
+    from freqbrdf.capture import kernels as capture_kernels
+    from freqbrdf.studies import expected_entropy
+
+    helpers = {f"{module.__name__}.{name}": value.targetoptions
+               for module in (compiled, compiled_light, capture_kernels, expected_entropy)
+               for name, value in vars(module).items()
+               if hasattr(value, "targetoptions") and name not in module.__all__  # kernels: called from Python
+               and not value.targetoptions.get("parallel") and value.targetoptions.get("inline", "never") == "never"}
+    assert "freqbrdf.estimate.optimise.compiled._hermite" in helpers
+    assert [name for name, options in helpers.items() if "fastmath" not in options] == []
+
+
 def test_tv_kernel_matches_the_sparse_difference_operator() -> None:
     rng = np.random.default_rng(3)
     x = rng.uniform(0.0, 1.0, (40, 5))

@@ -273,7 +273,7 @@ def edge_free_distances(distances: np.ndarray, jump: float) -> np.ndarray:
     _edge_free_distances(_floats(distances), float(jump), out)
     return out
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", fastmath=False)
 def _nearest_faces(uv, faces, R, dilate, best_face, best_bary, best_dist):  # pragma: no cover - compiled
     bary = np.empty(3)
     for f in range(faces.shape[0]):

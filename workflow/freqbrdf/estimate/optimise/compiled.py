@@ -27,9 +27,12 @@ _LM_DOWN, _LM_UP, _LM_MIN, _LM_MAX = 1.0 / 3.0, 4.0, 1e-6, 1e6
 # texels), so a fresh run's numbers depended on which of its jobs compiled a kernel first
 # (tests/test_optimise.py runs every method compiled, then cached).
 _FAST = {"nsz", "arcp", "afn"}
+# The helpers that are neither inlined nor kernels (`_hermite`, `_view_basis`) fix their own
+# flags: numba would compile them once, with the flags of whichever kernel calls them first
+# (l1_kernel's fast math or grid_kernel's none), and a kernel's numbers then hung on that order.
 
 
-@numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
+@numba.njit(cache=True, fastmath=False)  # not inlined: numba's parfor array analysis fails on its tuples
 def _hermite(alpha, alpha_min, nodes):  # pragma: no cover - compiled
     """Cubic Hermite interpolation in ``log alpha`` over ``nodes`` even nodes of ``[log alpha_min, 0]``:
     the node i below alpha, and the weights of (value_i, slope_i, value_i+1, slope_i+1), slopes
@@ -108,7 +111,7 @@ def _table_point(view, k, i, j, tj, w):  # pragma: no cover - compiled
     return (1.0 - tj) * lo + tj * hi
 
 
-@numba.njit(cache=True)  # not inlined: numba's parfor array analysis fails on its tuples
+@numba.njit(cache=True, fastmath=False)  # not inlined: numba's parfor array analysis fails on its tuples
 def _view_basis(alpha, alpha_min, view):  # pragma: no cover - compiled
     """`_hermite` at alpha on the nodes of ``view`` (unused weights for the paper's empty table)."""
     if view.shape[0] == 0:
