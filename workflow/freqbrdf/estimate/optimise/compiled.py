@@ -20,13 +20,15 @@ __all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "tv_kernel"]
 _TEXELS = 64  # texels per parallel iteration (one set of scratch arrays each)
 # Levenberg-Marquardt damping: x 1/3 after a kept step, x 4 after a rejected one, within [1e-6, 1e6]
 _LM_DOWN, _LM_UP, _LM_MIN, _LM_MAX = 1.0 / 3.0, 4.0, 1e-6, 1e6
-# Fast math without "reassoc" and "contract", and without "nnan" and "ninf" (the Cholesky's
-# positive-pivot test must still see a NaN). With reassociation or contraction into fused
-# multiply-adds, the code numba compiles in a process and the code it loads from its cache
-# rounded differently (sphere/studio's freq_noshadow: gradients apart by up to 8e-7 in 244
-# texels), so a fresh run's numbers depended on which of its jobs compiled a kernel first
-# (tests/test_optimise.py runs every method compiled, then cached).
-_FAST = {"nsz", "arcp", "afn"}
+# Fast math without "reassoc", "nnan" and "ninf" (the Cholesky's positive-pivot test must
+# still see a NaN), and for the LM sweeps without "contract" either: with reassociation, and
+# in lm_kernel with contraction into fused multiply-adds, the code numba compiled in a process
+# and the code it loaded from its cache rounded differently, so a fresh run's numbers depended
+# on which of its jobs compiled a kernel first (tests/test_optimise.py runs every method
+# compiled, then cached). Contraction is most of the fast math's gain in l1_kernel
+# (docs/estimator.md, Cost).
+_FAST = {"nsz", "arcp", "afn", "contract"}
+_FAST_LM = _FAST - {"contract"}
 # The helpers that are neither inlined nor kernels (`_hermite`, `_view_basis`) fix their own
 # flags: numba would compile them once, with the flags of whichever kernel calls them first
 # (l1_kernel's fast math or grid_kernel's none), and a kernel's numbers then hung on that order.
@@ -513,7 +515,7 @@ def _predicted_gain(h, g, step):  # pragma: no cover - compiled
     return gain
 
 
-@numba.njit(parallel=True, cache=True, fastmath=_FAST)
+@numba.njit(parallel=True, cache=True, fastmath=_FAST_LM)
 def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
               geo, src, nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
               cost_out):  # pragma: no cover - compiled

@@ -22,7 +22,7 @@ _INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
 _SQRT2 = np.sqrt(2.0)
 _BLOCK = 256  # pairs per parallel iteration (one SH buffer each)
 _TEXELS = 64  # texels per parallel iteration (one set of scratch arrays each)
-_FAST = {"nsz", "arcp", "afn"}  # as `freqbrdf.estimate.optimise.compiled`'s, which says why (tested equal)
+_FAST = {"nsz", "arcp", "afn", "contract"}  # as `freqbrdf.estimate.optimise.compiled`'s, which says why (tested equal)
 
 
 @numba.njit(cache=True, inline="always")
