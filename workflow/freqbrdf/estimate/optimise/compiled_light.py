@@ -26,17 +26,33 @@ _FAST = {"nsz", "arcp", "afn", "contract"}  # as `freqbrdf.estimate.optimise.com
 
 
 @numba.njit(cache=True, inline="always")
-def _real_sh_point(x, y, z, lmax, a, b, out):  # pragma: no cover - compiled
+def _order_scratch(lmax):  # pragma: no cover - compiled
+    """Scratch of `_real_sh_point` (6, lmax + 2): per order m, ``cos m phi``, ``sin m phi`` and the
+    recurrence's last two values (rows 0-3, written per direction), and its two square roots,
+    ``sqrt((2m + 1) / 2m)`` and ``sqrt(2m + 3)`` (rows 4, 5), once per buffer, not per direction."""
+    scratch = np.zeros((6, lmax + 2))
+    for m in range(1, lmax + 1):
+        scratch[4, m] = np.sqrt((2.0 * m + 1.0) / (2.0 * m))
+        scratch[5, m] = np.sqrt(2.0 * m + 3.0)
+    return scratch
+
+
+@numba.njit(cache=True, inline="always")
+def _real_sh_point(x, y, z, lmax, a, b, out, scratch):  # pragma: no cover - compiled
     """Real SH of one unit direction into ``out`` ((lmax+1)^2,), the convention of
-    `freqbrdf.sphere.sh.real_sh` (Y-up, no Condon-Shortley phase), by its recurrence."""
+    `freqbrdf.sphere.sh.real_sh` (Y-up, no Condon-Shortley phase), by its recurrence
+    (``scratch``: `_order_scratch`). Each order's first two degrees are seeded, then every
+    degree advances all its orders' three-term recurrences side by side: independent
+    operations, where one order after another would wait on each step's latency."""
     t = y
     u = -z
     v = x
+    cm, sm, p1, p2 = scratch[0], scratch[1], scratch[2], scratch[3]  # p1: degree l - 1, p2: l - 2
     out[0] = _INV_SQRT_4PI
+    p2[0] = _INV_SQRT_4PI
     if lmax >= 1:
         out[2] = t * np.sqrt(3.0) * _INV_SQRT_4PI
-    for l in range(2, lmax + 1):
-        out[l * l + l] = a[l, 0] * (t * out[(l - 1) * (l - 1) + l - 1] - b[l, 0] * out[(l - 2) * (l - 2) + l - 2])
+        p1[0] = out[2]
     c_m = u  # Re (u + i v)^m
     s_m = v  # Im (u + i v)^m
     qmm = _INV_SQRT_4PI
@@ -45,47 +61,58 @@ def _real_sh_point(x, y, z, lmax, a, b, out):  # pragma: no cover - compiled
             c_new = u * c_m - v * s_m
             s_m = s_m * u + v * c_m
             c_m = c_new
-        qmm *= np.sqrt((2.0 * m + 1.0) / (2.0 * m))
+        qmm *= scratch[4, m]
         q2 = _SQRT2 * qmm  # sqrt(2) q_m^m
+        cm[m], sm[m], p2[m] = c_m, s_m, q2
         out[m * m + 2 * m] = q2 * c_m
         out[m * m] = q2 * s_m
         if m + 1 <= lmax:
-            q1 = t * q2 * np.sqrt(2.0 * m + 3.0)
+            q1 = t * q2 * scratch[5, m]
             i = (m + 1) * (m + 1) + m + 1
             out[i + m] = q1 * c_m
             out[i - m] = q1 * s_m
-            for l in range(m + 2, lmax + 1):
-                q = a[l, m] * (t * q1 - b[l, m] * q2)
-                i = l * l + l
-                out[i + m] = q * c_m
-                out[i - m] = q * s_m
-                q2 = q1
-                q1 = q
+            p1[m] = q1
+    for l in range(2, lmax + 1):
+        for m in range(l - 1):
+            q = a[l, m] * (t * p1[m] - b[l, m] * p2[m])
+            p2[m] = p1[m]
+            p1[m] = q
+        i = l * l + l
+        out[i] = p1[0]
+        for m in range(1, l - 1):
+            out[i + m] = p1[m] * cm[m]
+            out[i - m] = p1[m] * sm[m]
 
 
 @numba.njit(cache=True, inline="always")
-def _mirror_sums(lg, d, a, b, y, out, p):  # pragma: no cover - compiled
-    """``out[p, l, c] = sum_m lg[lm, c] Y_lm(d)`` per degree, RGB (``y``: scratch): three running
-    sums, one pass over each degree's coefficients."""
+def _mirror_sums(lg, d, a, b, y, scratch, out, p):  # pragma: no cover - compiled
+    """``out[p, l, c] = sum_m lg[lm, c] Y_lm(d)`` per degree, RGB (``y``, ``scratch``: scratch of
+    `_real_sh_point`): six running sums, two per channel, one pass over each degree's coefficients."""
     lmax = out.shape[1] - 1
     norm = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    _real_sh_point(d[0] / norm, d[1] / norm, d[2] / norm, lmax, a, b, y)
+    _real_sh_point(d[0] / norm, d[1] / norm, d[2] / norm, lmax, a, b, y, scratch)
     for l in range(lmax + 1):
-        r_sum, g_sum, b_sum = 0.0, 0.0, 0.0
-        for k in range(l * l, (l + 1) * (l + 1)):
+        k0 = l * l
+        r_sum, g_sum, b_sum = lg[k0, 0] * y[k0], lg[k0, 1] * y[k0], lg[k0, 2] * y[k0]
+        r2, g2, b2 = 0.0, 0.0, 0.0
+        for k in range(k0 + 1, (l + 1) * (l + 1), 2):  # the other 2l terms as two chains of l
             r_sum += lg[k, 0] * y[k]
             g_sum += lg[k, 1] * y[k]
             b_sum += lg[k, 2] * y[k]
-        out[p, l, 0], out[p, l, 1], out[p, l, 2] = r_sum, g_sum, b_sum
+            r2 += lg[k + 1, 0] * y[k + 1]
+            g2 += lg[k + 1, 1] * y[k + 1]
+            b2 += lg[k + 1, 2] * y[k + 1]
+        out[p, l, 0], out[p, l, 1], out[p, l, 2] = r_sum + r2, g_sum + g2, b_sum + b2
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(parallel=True, cache=True, fastmath=_FAST)
 def degree_sums_kernel(lg, rows, pairs, mirror, a, b, out):  # pragma: no cover - compiled
     n = pairs.shape[0]
     for blk in numba.prange((n + _BLOCK - 1) // _BLOCK):
         y = np.empty(out.shape[1] * out.shape[1])
+        scratch = _order_scratch(out.shape[1] - 1)
         for i in range(blk * _BLOCK, min(n, (blk + 1) * _BLOCK)):
-            _mirror_sums(lg[rows[i]], mirror[pairs[i]], a, b, y, out, pairs[i])
+            _mirror_sums(lg[rows[i]], mirror[pairs[i]], a, b, y, scratch, out, pairs[i])
 
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
@@ -121,13 +148,14 @@ def basis_factors_kernel(normals, directions, u, out):  # pragma: no cover - com
                 out[t * rank + k, q] = u[k, j] + f * (u[k, j + 1] - u[k, j])
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(parallel=True, cache=True, fastmath=_FAST)
 def table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirror, a, b, out):  # pragma: no cover
     rank, size = coefficients.shape[1], coefficients.shape[2]  # size: (lmax + 1)^2 x 3, coefficient-major
     n = slots.shape[0]
     for blk in numba.prange((n + _TEXELS - 1) // _TEXELS):
         lg = np.empty(size, np.float32)
         y = np.empty(out.shape[1] * out.shape[1])
+        scratch = _order_scratch(out.shape[1] - 1)
         for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
             lg[:] = 0.0
             for j in range(corner.shape[1]):
@@ -138,4 +166,4 @@ def table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirr
                         for q in range(size):
                             lg[q] += w * row[q]
             for p in range(start[slots[i]], start[slots[i] + 1]):
-                _mirror_sums(lg.reshape(y.shape[0], 3), mirror[p], a, b, y, out, p)
+                _mirror_sums(lg.reshape(y.shape[0], 3), mirror[p], a, b, y, scratch, out, p)
