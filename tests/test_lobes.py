@@ -111,6 +111,20 @@ def test_specular_albedo_matches_the_integral_over_light_directions(alpha: float
     np.testing.assert_allclose([a[0, 0], b[0, 0]], specular_albedo_by_angles(alpha, mu), atol=3e-3)
 
 
+@pytest.mark.parametrize("roughness, mu", [(0.0, 0.9), (0.3, 0.2), (0.7, 0.55), (1.0, 0.05), (1.0, 1.0)])
+def test_principled_diffuse_albedo_matches_the_integral_over_light_directions(roughness: float, mu: float) -> None:
+    # Burley's diffuse shape times cos theta_i / pi, summed over a midpoint grid of the hemisphere
+    n = 400
+    t, p = np.meshgrid((np.arange(n) + 0.5) * np.pi / 2 / n, (np.arange(2 * n) + 0.5) * np.pi / n, indexing="ij")
+    cos_io = np.cos(t) * mu + np.sin(t) * np.sqrt(1 - mu**2) * np.cos(p)
+    f_i, f_o, retro = (1 - np.cos(t)) ** 5, (1 - mu) ** 5, roughness * (1 + cos_io)
+    shape = (1 - f_i / 2) * (1 - f_o / 2) + retro * (f_o + f_i + f_o * f_i * (retro - 1))
+    expected = (shape * np.cos(t) * np.sin(t)).sum() * (np.pi / 2 / n) * (np.pi / n) / np.pi
+    both = principled_diffuse_albedo(np.array([roughness, 0.0]), np.array([mu]))
+    np.testing.assert_allclose(both[0, 0], expected, rtol=1e-5)
+    assert both[1, 0] <= 1.0  # smooth: never brighter than Lambert
+
+
 def test_uniform_response_is_the_models_specular_term_under_a_uniform_light() -> None:
     """Under a constant unit environment, with R0 = 1 and the paper's weight without masking, the
     model's radiance is its filtered shadowed light alone: `uniform_response` at each view, which

@@ -198,8 +198,9 @@ def principled_diffuse_albedo(roughness: np.ndarray, mu: np.ndarray, nodes: int 
     Schlick weights ``F = (1 - cos theta)^5`` and the retro-reflection
     ``R = 2 r cos^2 theta_d``, ``cos^2 theta_d = (1 + i.o) / 2``: darker than Lambert at
     grazing views when smooth, brighter when rough. The albedo ``(1 / pi) int (...) cos theta_i
-    d omega_i`` is a quadratic in r; a product Gauss-Legendre rule in ``cos theta_i`` and the
-    azimuth evaluates it (the integrand is a polynomial in ``cos theta_i``, its sine and ``cos phi``).
+    d omega_i`` is a quadratic in r, so only its three coefficients are integrated, per view, by
+    a product Gauss-Legendre rule in ``cos theta_i`` and the azimuth (the integrand is a
+    polynomial in ``cos theta_i``, its sine and ``cos phi``).
 
     Parameters
     ----------
@@ -213,18 +214,20 @@ def principled_diffuse_albedo(roughness: np.ndarray, mu: np.ndarray, nodes: int 
     numpy.ndarray
         Shape ``(A, M)``, float64: 1 for a Lambertian lobe.
     """
-    r = np.asarray(roughness, dtype=np.float64)[:, None, None]
-    m = np.asarray(mu, dtype=np.float64)[None, :, None]
+    r = np.asarray(roughness, dtype=np.float64)[:, None]
+    m = np.asarray(mu, dtype=np.float64)[:, None]
     _check_unit_interval(r, "roughness", open_below=False)
     _check_unit_interval(m, "mu", open_below=True)
     u, w = _unit_interval_nodes(nodes)
     cos_i, phi = (g.ravel() for g in np.meshgrid(u, np.pi * u, indexing="ij"))  # phi in [0, pi]: symmetric
-    weight = 2.0 * np.outer(w, w).ravel()  # (1 / pi) d omega = (1 / pi) d cos d phi, phi = pi u over [0, pi], twice
-    cos_io = cos_i * m + np.sqrt(1 - cos_i**2) * np.sqrt(1 - m * m) * np.cos(phi)
+    weight = 2.0 * np.outer(w, w).ravel() * cos_i  # cos theta_i d omega / pi, phi = pi u over [0, pi], twice
+    d = 1 + cos_i * m + np.sqrt(1 - cos_i**2) * np.sqrt(1 - m * m) * np.cos(phi)  # (M, nodes^2): R = r d
     f_i, f_o = (1 - cos_i) ** 5, (1 - m) ** 5
-    retro = r * (1 + cos_io)  # R = 2 r cos^2 theta_d
-    shape = (1 - f_i / 2) * (1 - f_o / 2) + retro * (f_o + f_i + f_o * f_i * (retro - 1))
-    return (shape * cos_i) @ weight
+    # shape = (1 - f_i / 2)(1 - f_o / 2) + r d (f_o + f_i - f_o f_i) + r^2 d^2 f_o f_i
+    c0 = (1 - f_o[:, 0] / 2) * ((1 - f_i / 2) @ weight)
+    c1 = (d * (f_o + f_i - f_o * f_i)) @ weight
+    c2 = f_o[:, 0] * ((d * d * f_i) @ weight)
+    return c0 + r * (c1 + r * c2)
 
 
 def uniform_response(alpha: np.ndarray, mu: np.ndarray, lobe: str, lmax: int, nodes: int = 512) -> np.ndarray:
