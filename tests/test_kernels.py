@@ -46,7 +46,7 @@ def test_the_light_kernels_compile_with_the_model_kernels_settings() -> None:
 def test_every_compiled_helper_fixes_its_own_fast_math_flags() -> None:
     # numba compiles a helper that is neither inlined nor a kernel once per signature, with the
     # fast-math flags of the kernel that first calls it unless it sets its own: l1_kernel's grid
-    # start gave other gradients (sphere/sky: up to 1e-5 of their sum) when l1_kernel, not
+    # start gave other gradients (sphere/sky: 1.3e-5 of their sum) when l1_kernel, not
     # grid_kernel, was the first to compile _hermite in a process, and the cache kept that order's code
     from freqbrdf.capture import kernels as capture_kernels
     from freqbrdf.studies import expected_entropy

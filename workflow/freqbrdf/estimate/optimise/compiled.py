@@ -25,8 +25,7 @@ _LM_DOWN, _LM_UP, _LM_MIN, _LM_MAX = 1.0 / 3.0, 4.0, 1e-6, 1e6
 # in lm_kernel with contraction into fused multiply-adds, the code numba compiled in a process
 # and the code it loaded from its cache rounded differently, so a fresh run's numbers depended
 # on which of its jobs compiled a kernel first (tests/test_optimise.py runs every method
-# compiled, then cached). Contraction is most of the fast math's gain in l1_kernel
-# (docs/estimator.md, Cost).
+# compiled, then cached). Contraction makes l1_kernel faster (docs/estimator.md, Cost).
 _FAST = {"nsz", "arcp", "afn", "contract"}
 _FAST_LM = _FAST - {"contract"}
 # The helpers that are neither inlined nor kernels (`_hermite`, `_view_basis`) fix their own
