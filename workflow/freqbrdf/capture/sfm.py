@@ -429,7 +429,18 @@ def check_registration(n_registered: int, n_views: int, min_fraction: float, log
         f"COLMAP registered only {n_registered} of {n_views} views ({fraction:.0%}, "
         f"at least {min_fraction:.0%} needed); {_advice()}"
     )
-    if log is None or n_registered < 3:
+    if n_registered < 3:
+        raise error
+    return raise_or_warn(error, log)
+
+
+def raise_or_warn(error: Exception, log: logging.Logger | None) -> bool:
+    """Raise ``error``; or, given ``log``, warn with it there and return False.
+
+    A check of poses that no estimate uses (SfM only scored) is given a log: such poses are a
+    result even when they fail the check.
+    """
+    if log is None:
         raise error
     log.warning("%s; kept, since no estimate uses these poses", error)
     return False

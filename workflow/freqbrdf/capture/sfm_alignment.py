@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from freqbrdf.capture.sfm import view_name
+from freqbrdf.capture.sfm import raise_or_warn, view_name
 from freqbrdf.capture.sfm_options import CONFIG_PREFIX
 from freqbrdf.scene.cameras import Cameras
 
@@ -313,7 +313,4 @@ def check_accuracy(
         f"{CONFIG_PREFIX}filter_max_reproj_error (stricter geometry), or raise the limits "
         "poses.max_median_rotation_deg / poses.max_median_centre_error"
     )
-    if log is None:
-        raise error
-    log.warning("%s; kept, since no estimate uses these poses", error)
-    return False
+    return raise_or_warn(error, log)
