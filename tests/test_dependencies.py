@@ -50,7 +50,7 @@ def test_an_edited_module_is_read_again_in_the_same_process(tmp_path: Path) -> N
 def rule_blocks() -> dict[str, str]:
     blocks = {}
     for smk in sorted((REPO / "workflow" / "rules").glob("*.smk")):
-        for block in re.split(r"\n(?=rule )", smk.read_text()):
+        for block in re.split(r"\n(?=rule |use rule )", smk.read_text()):
             if block.startswith("rule "):
                 blocks[block.split(":")[0].removeprefix("rule ").strip()] = block
     return blocks

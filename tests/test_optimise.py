@@ -7,6 +7,7 @@ import pytest
 
 import oracles
 from freqbrdf.estimate import light as lt
+from freqbrdf.estimate.light_table import TableSize, read_light_table, shadowed_light_table, write_light_table
 from freqbrdf.artefacts import Observations
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.estimate.optimise.kernels import KernelModel, LmStep
@@ -541,6 +542,24 @@ def test_optimise_is_deterministic(small: dict, kw: dict) -> None:
         for k in TEXTURES:
             np.testing.assert_array_equal(a[0][k], other[0][k])
         np.testing.assert_array_equal(a[1], other[1])
+
+
+def test_a_table_read_from_disk_gives_the_estimate_of_one_fitted_inside(small: dict, tmp_path) -> None:
+    """Rule light_table's table, written and read back, changes no bit of the estimate; a table of
+    another size than the settings' is refused."""
+    size = TableSize(rows=6, rank=4)
+    settings = OptimiseSettings.paper(iterations=20, refit_every=7, light_table=size)
+    write_light_table(tmp_path / "t", shadowed_light_table(small["light"], size.rows, size.rank))
+    table = read_light_table(tmp_path / "t", small["light"], size)
+    obs = observations(small, small["radiance"])
+    inside = optimise(obs, small["irradiance"], small["light"], None, "freq", settings=settings)
+    read = optimise(obs, small["irradiance"], small["light"], None, "freq", settings=settings, table=table)
+    for k in TEXTURES:
+        np.testing.assert_array_equal(inside.params[k], read.params[k])
+    np.testing.assert_array_equal(inside.loss_curve, read.loss_curve)
+    other = OptimiseSettings.paper(iterations=2, light_table=TableSize(rows=8, rank=4))
+    with pytest.raises(ValueError, match="asks rows 8"):
+        optimise(obs, small["irradiance"], small["light"], None, "freq", settings=other, table=table)
 
 
 @pytest.mark.parametrize("schedule", [{"iterations": 60}, {"solver": "lm", "sweeps": 10}])

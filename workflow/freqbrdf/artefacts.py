@@ -11,6 +11,9 @@ artefact        directory (`freqbrdf.layout`)         written by             rea
 `Entropy`       ``ENTROPY``                           spectrum_search        metrics, capture_figure
 ==============  ====================================  =====================  ==========================================
 
+The shadowed light's table of a map (rule ``light_table``) has its reader and writer beside
+the code that fits it (`freqbrdf.estimate.light_table`).
+
 Per-texel arrays are in the order of the observations' texels (``texel``:
 flat atlas indices ``i * R + j``). Readers check the ``format`` string of the
 directories that carry one, and the shapes against each other, and name the

@@ -27,6 +27,7 @@ ENVMAP_HDR = "results/envs/{env}.hdr"
 ENVMAP_SOURCE = "results/envs/{env}.json"  # where the map comes from: its kind, settings, licence, clean-up
 ENV_SPECTRUM = "results/envs/{env}_spectrum.{ext}"
 ENV_SPECTRA = "results/envs/spectra.png"
+LIGHT_TABLE = "results/envs/{env}_light_table"  # the shadowed light tabulated over normals (rules/estimate.smk)
 CAPTURE = "results/captures/{object}/{env}/{split}"
 RESOURCE = "results/resources/{name}"  # packages fetched from a registry (the captured light's npm package)
 
@@ -36,6 +37,7 @@ IMPORT_SPLIT = "results/imports/{object}/{split}"
 IMPORT_MESH = "results/imports/{object}/mesh.ply"
 IMPORT_ENVMAP_GIVEN = "results/imports/{object}/envmap_given.exr"
 IMPORT_ENVMAP = "results/imports/{object}/envmap.exr"
+IMPORT_LIGHT_TABLE = "results/imports/{object}/light_table"
 IMPORT_ORIENTATION = "results/imports/{object}/env_orientation.tsv"
 IMPORT_ROTATION = "results/imports/{object}/env_rotation.json"
 IMPORT_TRUTH = "results/imports/{object}/truth/{texture}.exr"

@@ -162,6 +162,31 @@ def envmap_file(wildcards):
     return fill(layout.ENVMAP, env=wildcards.env)
 
 
+def uses_light_table(method):
+    """Whether a method's model takes the table of rule light_table (shadowed, its light the map's own
+    rather than pre-filtered per capture, and optimise.light_table.rows above 0)."""
+    entry = METHOD_REGISTRY[method]
+    return (
+        entry.rule == "optimise_svbrdf"
+        and entry.shadowing
+        and not entry.prefiltered
+        and config["optimise"]["light_table"]["rows"] > 0
+    )
+
+
+def light_table_file(wildcards):
+    """The table of the map lighting a capture (rule light_table), as envmap_file finds the map."""
+    if wildcards.object in REAL_CAPTURES:
+        return fill(layout.IMPORT_LIGHT_TABLE, object=wildcards.object)
+    return fill(layout.LIGHT_TABLE, env=wildcards.env)
+
+
+def light_table_input(wildcards, method=None):
+    """{"light_table": the capture's table} if ``method`` (default: the wildcard's) uses one
+    (uses_light_table), else nothing."""
+    return {"light_table": light_table_file(wildcards)} if uses_light_table(method or wildcards.method) else {}
+
+
 # The package of the captured light and the scans (freqbrdf.scene.assets), fetched by rule fetch_asset_package.
 ASSET_PACKAGE = fill(layout.RESOURCE, name=assets.TARBALL)
 
@@ -219,6 +244,10 @@ def method_benchmarks(o, e, p, m):
         before = method_benchmarks(o, e, p, "spectrum")
     else:
         before = []
+    if uses_light_table(m):  # the map's table, though another capture under the map may share it
+        before.append(
+            layout.benchmark("import_light_table", o) if o in REAL_CAPTURES else layout.benchmark("light_table", e)
+        )
     return before + [layout.benchmark(estimator, f"{o}_{e}_{p}_{m}")]
 
 

@@ -58,6 +58,7 @@ rule view_selection_sweep:
     """freq's parameter MSE with k training views chosen by expected entropy, at random
     (several seeds) and evenly spread, for each k of view_selection.sweep_counts."""
     input:
+        unpack(lambda w: light_table_input(w, "freq")),
         observations=layout.OBSERVATIONS,
         poses=pose_dir,
         envmap=envmap_file,

@@ -7,6 +7,7 @@ rule views_sweep:
     """freq's parameter MSE and the mean spectrum entropy of one capture restricted to seeded
     random subsets of its training views, each with the band limit of its own count."""
     input:
+        unpack(lambda w: light_table_input(w, "freq")),
         observations=layout.OBSERVATIONS,
         envmap=envmap_file,
         truth=lambda w: [object_files(w.object)[n] for n in TEXTURES],

@@ -16,7 +16,7 @@ def main(smk, log):
     texels = obs.texels
     init = read_svbrdf(smk.input.init).at_texels(texels.texel) if "init" in smk.input.keys() else None
     fit = estimate_capture(obs, read_exr(smk.input.envmap), smk.wildcards.method, smk.params.optimise, smk.threads,
-                           init, log)
+                           init, log, smk.input.light_table if "light_table" in smk.input.keys() else None)
     with atomic_directory(smk.output.estimate) as tmp:
         write_svbrdf(tmp, Svbrdf.from_texels(texels.resolution, texels.texel, fit.params, obs.observed))
         prior_std = float(np.sqrt(prior_variance(smk.params.optimise["variance_scale"])))

@@ -14,6 +14,7 @@ from freqbrdf.util.io import atomic_path, read_exr, read_json
 from freqbrdf.util.logs import run_script
 from freqbrdf.report.metrics import parameter_mse
 from freqbrdf.capture.observations import band_limit_parameter, band_limited_envmap
+from freqbrdf.estimate.light_table import read_light_table
 from freqbrdf.estimate.optimise.model import estimate_light
 from freqbrdf.estimate.optimise.settings import OptimiseSettings
 from freqbrdf.studies.view_selection import (
@@ -32,16 +33,16 @@ def posterior_setup(smk, obs, envmap, texels, directions, fit_setup, log):
     to the sampled texels' posterior at the pilot's estimate, their images unread; with seconds
     taken. Shared by every k: each k's greedy choice (`subsets`) starts from it."""
     p = smk.params
-    settings, light, e = fit_setup
+    settings, light, e, table = fit_setup
     start = time.perf_counter()
     pilot = farthest_views(directions, p.settings["pilot_views"])
     _, _, estimate = estimate_subset(obs, pilot, envmap, p.band_limit, p.sh, p.spectrum, settings, light, e,
-                                     smk.threads)
+                                     smk.threads, table)
     sample = Observations(obs.texels.subset(texels), *(np.asarray(a)[texels] for a in
                                                         (obs.radiance, obs.weight, obs.wo_local, obs.incoming)),
                           obs.meta)
     information = capture_information(sample, pilot, {name: v[texels] for name, v in estimate.items()}, light,
-                                      e[texels], settings)
+                                      e[texels], settings, table=table)
     seconds = time.perf_counter() - start
     log.info("posterior-guided selection: pilot views %s fitted and every view's information in %.1f s",
              pilot.tolist(), seconds)
@@ -88,6 +89,8 @@ def main(smk, log):
     p = smk.params
     settings = OptimiseSettings.from_config(p.optimise, workers=smk.threads)
     light, e = estimate_light(envmap, obs, "freq", p.optimise["lmax"], p.optimise["point_sources"])
+    table = (read_light_table(smk.input.light_table, light, settings.light_table)
+             if "light_table" in smk.input.keys() else None)  # one table for every subset
     texels = sample_texels(np.arange(len(obs.texels)), p.settings["texels"], p.texel_seed)
     seen = obs.observed
     centre = obs.texels.position[seen].mean(axis=0)
@@ -97,7 +100,7 @@ def main(smk, log):
     done, rows = {}, []
     counts = sorted({min(int(c), n_views) for c in p.settings["sweep_counts"]})
     guided = [k for k in counts if p.settings["pilot_views"] < k < n_views]
-    posterior = posterior_setup(smk, obs, envmap, texels, directions, (settings, light, e), log) if guided else None
+    posterior = posterior_setup(smk, obs, envmap, texels, directions, (settings, light, e, table), log) if guided else None
     for k in counts:
         for (strategy, rep), (views, choose_s) in subsets(smk, obs, envmap, texels, directions, k, posterior,
                                                           log).items():
@@ -105,7 +108,7 @@ def main(smk, log):
             if key not in done:  # e.g. k = every view: one estimate for every strategy
                 start = time.perf_counter()
                 sub, search, estimate = estimate_subset(obs, views, envmap, p.band_limit, p.sh, p.spectrum, settings,
-                                                        light, e, smk.threads)
+                                                        light, e, smk.threads, table)
                 textures = Svbrdf.from_texels(obs.texels.resolution, obs.texels.texel, estimate, sub.observed)
                 done[key] = {"observed_texels": int(sub.observed.sum()),
                              "mean_entropy": float(search.entropy[seen].mean()),

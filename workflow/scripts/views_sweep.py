@@ -12,6 +12,7 @@ from freqbrdf.report.figures import views_figure
 from freqbrdf.util.io import atomic_path, read_exr
 from freqbrdf.util.logs import run_script
 from freqbrdf.report.metrics import parameter_mse
+from freqbrdf.estimate.light_table import read_light_table
 from freqbrdf.estimate.optimise.model import estimate_light
 from freqbrdf.estimate.optimise.settings import OptimiseSettings
 from freqbrdf.studies.views import estimate_subset, view_subsets
@@ -24,11 +25,13 @@ def main(smk, log):
     p = smk.params
     settings = OptimiseSettings.from_config(p.optimise, workers=smk.threads)
     light, e = estimate_light(envmap, obs, "freq", p.optimise["lmax"], p.optimise["point_sources"])
+    table = (read_light_table(smk.input.light_table, light, settings.light_table)
+             if "light_table" in smk.input.keys() else None)  # one table for every subset
     rows = []
     for count, views in view_subsets(len(obs.meta["views"]), p.counts, p.seed).items():
         start = time.perf_counter()
         sub, search, estimate = estimate_subset(obs, views, envmap, p.band_limit, p.sh, p.spectrum, settings, light,
-                                                e, smk.threads)
+                                                e, smk.threads, table)
         texels = sub.texels
         scored = texels.texel[sub.observed]
         mse = parameter_mse(truth, Svbrdf.from_texels(texels.resolution, texels.texel, estimate, sub.observed), scored)

@@ -18,11 +18,18 @@ texel and fit). Two facts make it tabulable:
 The table costs ``rank x 2 rows^2`` fits once per environment, where the
 per-texel fits cost one per observed texel at every refit; a refit then only
 interpolates. Its accuracy against the per-texel fits: docs/estimator.md.
+
+A table depends on the environment's light only, not on the capture, so rule ``light_table``
+fits it once per map (`write_light_table`) and every estimate under that map reads it
+(`read_light_table`), which checks that it was fitted from the same light and size.
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -31,9 +38,13 @@ from freqbrdf.estimate.light import LightQuadrature, project_factors
 from freqbrdf.estimate.optimise.kernels import basis_factors
 from freqbrdf.sphere.brdf import alpha_from_roughness, smith_g1, tan2_theta
 from freqbrdf.sphere.sampling import equirect_directions
+from freqbrdf.util.io import atomic_path, read_json, write_json
 from freqbrdf.util.validation import check_finite, check_int, check_shape
 
-__all__ = ["TableSize", "ShadowingBasis", "shadowing_basis", "ShadowedLightTable", "shadowed_light_table"]
+__all__ = ["TableSize", "ShadowingBasis", "shadowing_basis", "ShadowedLightTable", "shadowed_light_table",
+           "light_fingerprint", "write_light_table", "read_light_table"]
+
+LIGHT_TABLE_FORMAT = "freqbrdf-light-table/1"
 
 _MU_SAMPLES = 1025  # samples of each u_k in cos theta: linear interpolation within 1e-5 of G1's own
 _ROUGHNESS_SAMPLES = 257
@@ -120,11 +131,25 @@ class ShadowedLightTable:
         (`freqbrdf.sphere.sampling.equirect_directions`).
     coefficients : numpy.ndarray
         Shape ``(2 rows^2, R, (lmax+1)^2, C)``, float32: ``Lg_k`` at each grid normal.
+    light : str
+        `light_fingerprint` of the light it was fitted from.
     """
 
     basis: ShadowingBasis
     rows: int
     coefficients: np.ndarray
+    light: str
+
+    def check_fits(self, light: LightQuadrature, size: TableSize) -> None:
+        """Raise ValueError unless this table was fitted from ``light`` at ``size``."""
+        have = (self.rows, self.basis.rank, self.coefficients.shape[2])
+        want = (size.rows, size.rank, (light.lmax + 1) ** 2)
+        if have != want:
+            raise ValueError(f"table of rows {have[0]}, rank {have[1]} and {have[2]} SH coefficients, but "
+                             f"optimise.light_table asks rows {want[0]}, rank {want[1]} and the light has {want[2]}")
+        if self.light != light_fingerprint(light):
+            raise ValueError("table fitted from another light than this estimate's (another map, optimise.lmax "
+                             "or optimise.point_sources)")
 
     def weights(self, normals: np.ndarray, roughness: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """How the table combines into the shadowed light of texels with these normals and roughness.
@@ -194,4 +219,56 @@ def shadowed_light_table(quadrature: LightQuadrature, rows: int, rank: int, work
 
     lg = project_factors(quadrature, grid.shape[0] * r, factors, workers, multiple=r)
     coefficients = lg.reshape(grid.shape[0], r, *lg.shape[1:])
-    return ShadowedLightTable(basis=basis, rows=rows, coefficients=coefficients)
+    return ShadowedLightTable(basis=basis, rows=rows, coefficients=coefficients, light=light_fingerprint(quadrature))
+
+
+def light_fingerprint(quadrature: LightQuadrature) -> str:
+    """SHA-256 of what a table fitted from ``quadrature`` depends on: its degree and its nodes'
+    directions and weighted radiance (so the map, the point sources taken out of it and any
+    pre-filter)."""
+    digest = hashlib.sha256(f"{quadrature.lmax} {quadrature.n_rings}".encode())
+    for array in (quadrature.directions, quadrature.weighted_radiance):
+        digest.update(np.ascontiguousarray(array, dtype=np.float64).tobytes())
+    return digest.hexdigest()
+
+
+_TABLE_ARRAYS = ("coefficients", "u", "v")
+
+
+def write_light_table(directory: str | os.PathLike, table: ShadowedLightTable) -> None:
+    """Write ``table`` into ``directory`` (its arrays as ``.npy``, ``table.json`` with its format)."""
+    directory = Path(directory)
+    arrays = {"coefficients": table.coefficients, "u": table.basis.u, "v": table.basis.v}
+    for name in _TABLE_ARRAYS:
+        with atomic_path(directory / f"{name}.npy") as path, open(path, "wb") as f:
+            np.save(f, arrays[name])
+    write_json(directory / "table.json", {"format": LIGHT_TABLE_FORMAT, "rows": table.rows,
+                                          "rank": table.basis.rank, "light": table.light})
+
+
+def read_light_table(directory: str | os.PathLike, light: LightQuadrature, size: TableSize) -> ShadowedLightTable:
+    """Read a table of `write_light_table`, checking that it was fitted from ``light`` at ``size``.
+
+    Raises
+    ------
+    ValueError
+        Naming ``directory``: another format, arrays that disagree, or a table of another light
+        or size (`ShadowedLightTable.check_fits`).
+    """
+    directory = Path(directory)
+    meta = read_json(directory / "table.json")
+    if meta.get("format") != LIGHT_TABLE_FORMAT:
+        raise ValueError(f"{directory / 'table.json'}: format is {meta.get('format')!r}, expected "
+                         f"{LIGHT_TABLE_FORMAT!r} (rerun rule light_table)")
+    arrays = {name: np.load(directory / f"{name}.npy") for name in _TABLE_ARRAYS}
+    rank, n_normals = arrays["u"].shape[0], 2 * int(meta["rows"]) ** 2
+    if arrays["coefficients"].shape[:2] != (n_normals, rank) or arrays["v"].shape[0] != rank:
+        raise ValueError(f"{directory}: arrays disagree with rows {meta['rows']} and rank {rank} "
+                         f"(coefficients {arrays['coefficients'].shape}, v {arrays['v'].shape})")
+    table = ShadowedLightTable(basis=ShadowingBasis(u=arrays["u"], v=arrays["v"]), rows=int(meta["rows"]),
+                               coefficients=arrays["coefficients"], light=str(meta["light"]))
+    try:
+        table.check_fits(light, size)
+    except ValueError as error:
+        raise ValueError(f"{directory}: {error} (rerun rule light_table)") from None
+    return table

@@ -24,6 +24,7 @@ import numpy as np
 
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature
+from freqbrdf.estimate.light_table import ShadowedLightTable
 from freqbrdf.estimate.optimise.model import ForwardModel
 from freqbrdf.estimate.optimise.posterior import (PRIOR_PRECISION, expected_error, model_jacobian, pair_information,
                                                   pooled_residual_variance, residual_variance)
@@ -120,7 +121,8 @@ def greedy_posterior_selection(information: np.ndarray, k: int, chosen: Sequence
 
 def capture_information(obs: Observations, pilot_views: Sequence[int], pilot: Mapping[str, np.ndarray],
                         light: LightQuadrature, irradiance: np.ndarray, settings: OptimiseSettings,
-                        method: str = "freq", min_pilot_views: int = 2) -> np.ndarray:
+                        method: str = "freq", min_pilot_views: int = 2,
+                        table: ShadowedLightTable | None = None) -> np.ndarray:
     """`view_information` of every view of a capture at a pilot estimate, from its pilot views' residuals.
 
     Parameters
@@ -139,6 +141,8 @@ def capture_information(obs: Observations, pilot_views: Sequence[int], pilot: Ma
     min_pilot_views : int
         A texel that fewer pilot views see takes the residual variance pooled over every pilot
         pair (2: the fewest whose 6 residuals leave a degree of freedom to 5 parameters).
+    table : ShadowedLightTable, optional
+        ``light``'s shadowed light tabulated (`freqbrdf.estimate.optimise.model.ForwardModel.of`).
 
     Returns
     -------
@@ -152,7 +156,7 @@ def capture_information(obs: Observations, pilot_views: Sequence[int], pilot: Ma
     radiance[:, unread] = 0.0  # the views not taken: their images are not known yet
     obs = Observations(obs.texels, radiance, obs.weight, obs.wo_local, obs.incoming, obs.meta)
     problem = build_problem(obs, irradiance, settings.dtype)
-    model = ForwardModel.of(problem, light, method, settings)
+    model = ForwardModel.of(problem, light, method, settings, table)
     xp = pack_params(pilot, n_texels)[problem.perm]  # checks the shapes
     xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
     roughness = np.empty(n_texels)

@@ -17,6 +17,7 @@ import numpy as np
 
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature
+from freqbrdf.estimate.light_table import ShadowedLightTable
 from freqbrdf.capture.observations import band_limit_parameter, band_limited_envmap, sample_equirect
 from freqbrdf.estimate.optimise.settings import OptimiseSettings
 from freqbrdf.estimate.optimise.solve import optimise
@@ -96,7 +97,8 @@ def mirror_light(frame: np.ndarray, wo_local: np.ndarray, incoming_map: np.ndarr
 
 def estimate_subset(obs: Observations, views: np.ndarray, envmap: np.ndarray, band_limit: str,
                     sh: Mapping[str, object], spectrum: Mapping[str, object], settings: OptimiseSettings,
-                    light: LightQuadrature, irradiance: np.ndarray, workers: int = 1
+                    light: LightQuadrature, irradiance: np.ndarray, workers: int = 1,
+                    table: ShadowedLightTable | None = None,
                     ) -> tuple[Observations, SpectrumSearch, dict[str, np.ndarray]]:
     """``freq`` on the views ``views`` of a capture, as the pipeline runs it on a whole capture.
 
@@ -115,6 +117,8 @@ def estimate_subset(obs: Observations, views: np.ndarray, envmap: np.ndarray, ba
         (:func:`freqbrdf.estimate.optimise.estimate_light` of the whole capture: neither depends on the views).
     workers : int
         Threads.
+    table : ShadowedLightTable, optional
+        ``light``'s shadowed light tabulated (rule ``light_table``'s; `optimise`'s ``table``).
 
     Returns
     -------
@@ -127,5 +131,5 @@ def estimate_subset(obs: Observations, views: np.ndarray, envmap: np.ndarray, ba
     """
     sub = view_subset(obs, views, envmap, band_limit)
     search = search_fit(fit_observations(sub, sh, workers), sub.observed, spectrum, workers)
-    estimate = optimise(sub, irradiance, light, method="freq", settings=settings).params
+    estimate = optimise(sub, irradiance, light, method="freq", settings=settings, table=table).params
     return sub, search, estimate

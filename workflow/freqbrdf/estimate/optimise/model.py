@@ -22,7 +22,7 @@ from freqbrdf.sphere.sh import recurrence_tables
 from freqbrdf.util.threads import set_threads
 from freqbrdf.util.validation import check_finite, check_int, check_shape
 
-__all__ = ["ForwardModel", "estimate_light", "model_light", "point_terms", "pair_source_geometry", "model_tables",
+__all__ = ["ForwardModel", "estimate_light", "model_light", "map_light", "point_terms", "pair_source_geometry", "model_tables",
            "light_terms", "refit_light", "forward", "loss_and_gradient", "grid_start"]
 
 
@@ -42,9 +42,16 @@ def model_light(
     envmap: np.ndarray, obs: Observations, method: str, lmax: int, point_sources: Mapping[str, float] | None = None,
 ) -> LightQuadrature:
     """The light of `estimate_light` without the irradiance."""
-    prefiltered = get_method(method).prefiltered
-    if prefiltered or not point_sources or not point_sources["max_radius_deg"]:
-        return light_quadrature(envmap, lmax, prefilter=obs.a_prime if prefiltered else 0.0)
+    if get_method(method).prefiltered:
+        return light_quadrature(envmap, lmax, prefilter=obs.a_prime)
+    return map_light(envmap, lmax, point_sources)
+
+
+def map_light(envmap: np.ndarray, lmax: int, point_sources: Mapping[str, float] | None = None) -> LightQuadrature:
+    """The light of every method that is not pre-filtered: it depends on the map alone, not on the
+    capture (`model_light`; rule ``light_table`` fits its shadowed light once per map)."""
+    if not point_sources or not point_sources["max_radius_deg"]:
+        return light_quadrature(envmap, lmax)
     residual, sources = extract_point_sources(envmap, point_sources["max_radius_deg"], point_sources["min_radiance"])
     return dataclasses.replace(light_quadrature(residual, lmax), sources=sources)
 
@@ -386,13 +393,21 @@ class ForwardModel:
     table: ShadowedLightTable | None = None
 
     @classmethod
-    def of(cls, problem: Problem, light: LightQuadrature, method: str, settings: OptimiseSettings) -> ForwardModel:
-        """The model of ``method`` (a method of rule ``optimise_svbrdf``) with ``settings``' lobe and weights."""
+    def of(cls, problem: Problem, light: LightQuadrature, method: str, settings: OptimiseSettings,
+           table: ShadowedLightTable | None = None) -> ForwardModel:
+        """The model of ``method`` (a method of rule ``optimise_svbrdf``) with ``settings``' lobe and
+        weights; its shadowed light from ``table`` (fitted from ``light`` at ``settings.light_table``,
+        e.g. rule ``light_table``'s), else from a table fitted here, if the settings and method use one."""
         shadowing, masking = method_terms(method)
         lobe, view = model_tables(settings, method, light.lmax)
         point = point_terms(problem, light.sources, shadowing)
         size = settings.light_table
-        table = shadowed_light_table(light, size.rows, size.rank, settings.workers) if shadowing and size.rows else None
+        if not (shadowing and size.rows):
+            table = None
+        elif table is None:
+            table = shadowed_light_table(light, size.rows, size.rank, settings.workers)
+        else:
+            table.check_fits(light, size)
         return cls(problem, light, shadowing, KernelModel(masking, lobe, view, point), table)
 
     def light_terms(self, roughness: np.ndarray, workers: int) -> np.ndarray:

@@ -5,6 +5,7 @@ refitted as the roughness moves."""
 from __future__ import annotations
 
 import logging
+import os
 import time
 from dataclasses import dataclass
 from typing import Mapping
@@ -13,6 +14,7 @@ import numpy as np
 
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature
+from freqbrdf.estimate.light_table import ShadowedLightTable, read_light_table
 from freqbrdf.estimate.optimise.kernels import LmStep, lm_sweep
 from freqbrdf.estimate.optimise.model import ForwardModel, estimate_light
 from freqbrdf.estimate.optimise.posterior import laplace_variance, prior_variance
@@ -94,6 +96,7 @@ def optimise(
     method: str = "freq",
     *,
     settings: OptimiseSettings,
+    table: ShadowedLightTable | None = None,
 ) -> Fit:
     """Per-texel principled parameters minimising the L1 + TV objective (Adam or LM: ``settings.solver``).
 
@@ -116,6 +119,10 @@ def optimise(
         Solver and SH fit settings (keyword only, no default): the pipeline's
         from its config (`OptimiseSettings.from_config`), the paper's from
         `OptimiseSettings.paper`.
+    table : ShadowedLightTable, optional
+        ``light``'s shadowed light tabulated at ``settings.light_table`` (rule ``light_table``'s,
+        `freqbrdf.estimate.light_table.read_light_table`); default: fitted here if the method
+        and settings use one.
 
     Returns
     -------
@@ -133,7 +140,7 @@ def optimise(
     method_terms(method)  # a bad method is named before any work
     if not isinstance(settings, OptimiseSettings):
         raise TypeError(f"settings must be an OptimiseSettings, got {type(settings).__name__}")
-    model = ForwardModel.of(build_problem(obs, irradiance, settings.dtype), light, method, settings)
+    model = ForwardModel.of(build_problem(obs, irradiance, settings.dtype), light, method, settings, table)
     problem = model.problem
     xp = _start(model, init, settings)[problem.perm]  # internal order
     descend = _descend_lm if settings.solver == "lm" else _descend
@@ -154,6 +161,7 @@ def estimate_capture(
     workers: int,
     init: Mapping[str, np.ndarray] | None = None,
     log: logging.Logger | None = None,
+    light_table: str | os.PathLike | None = None,
 ) -> Fit:
     """One capture's estimate by ``method``, as rule ``optimise_svbrdf`` makes it: the method's
     light and the irradiance (`estimate_light`), then `optimise` with the settings of
@@ -175,6 +183,9 @@ def estimate_capture(
         Start parameters (`optimise`'s ``init``).
     log : logging.Logger, optional
         Where the steps are logged (default: this module's logger).
+    light_table : path, optional
+        Rule ``light_table``'s table of this light (`freqbrdf.estimate.light_table.read_light_table`),
+        for a method whose light is not pre-filtered; default: fitted here if the method uses one.
 
     Returns
     -------
@@ -195,7 +206,12 @@ def estimate_capture(
         log.info("%d point sources outside the SH light (optimise.point_sources: %s), %.1f%% of the map's power",
                  len(light.sources.power), config["point_sources"],
                  100.0 * points / (points + light.weighted_radiance.sum()))
-    fit = optimise(obs, e, light, init=init, method=method, settings=settings)
+    table = None
+    if light_table is not None:
+        table = read_light_table(light_table, light, settings.light_table)
+        log.info("shadowed light from the table in %s (%d normals, rank %d)", light_table,
+                 table.coefficients.shape[0], table.basis.rank)
+    fit = optimise(obs, e, light, init=init, method=method, settings=settings, table=table)
     curve = fit.loss_curve
     if settings.solver == "adam":
         done = f"{settings.iterations} Adam steps, loss {curve[0]:.4g} -> {curve[-1]:.4g}"
