@@ -43,6 +43,24 @@ def test_the_light_kernels_compile_with_the_model_kernels_settings() -> None:
     assert compiled_light._TEXELS == compiled._TEXELS
 
 
+def test_the_model_kernels_see_one_type_of_view_table_whether_empty_or_tabled() -> None:
+    """numba compiles a kernel once per type of its arguments, and a read-only array is another
+    type than a writable one: the paper's empty view table and a cached, read-only `view_table`
+    both reach the kernels read-only, so the model kernels compile once per dtype, not twice."""
+    from freqbrdf.sphere.lobes import lobe_table, view_table
+
+    n = 2
+    pairs = kernels.PairData(np.arange(n + 1), np.zeros((n, 3)), np.zeros(n), np.zeros(n), np.ones((n, 3)))
+    for view in (None, view_table("paper", "principled", "ggx", 4)):
+        kernels.l1_loss_gradient(np.full((n, 5), 0.5), np.zeros((n, 5, 3)), pairs,
+                                 kernels.KernelModel(True, lobe=lobe_table("ggx", 4), view=view))
+    # every signature compiled in this process so far (the others' too, where other tests ran them)
+    for kernel in (compiled.l1_kernel, compiled.lm_kernel, compiled.grid_kernel):
+        views = [t for signature in kernel.signatures for t in signature if getattr(t, "ndim", 0) == 4]
+        assert not any(t.mutable for t in views), (kernel.__name__, views)
+        assert views or kernel is not compiled.l1_kernel
+
+
 def test_every_compiled_helper_fixes_its_own_fast_math_flags() -> None:
     # numba compiles a helper that is neither inlined nor a kernel once per signature, with the
     # fast-math flags of the kernel that first calls it unless it sets its own: l1_kernel's grid

@@ -228,12 +228,18 @@ def _table(lobe: np.ndarray | None, terms: np.ndarray) -> np.ndarray:
 
 
 def _view(view: np.ndarray | None) -> np.ndarray:
-    """``view`` (`freqbrdf.sphere.lobes.view_table`) checked; None: the paper's ``F(theta_o) G1(theta_o)``."""
-    if view is None:
-        return np.empty((0, 2, 3, 0))
-    view = np.ascontiguousarray(view, np.float64)
+    """``view`` (`freqbrdf.sphere.lobes.view_table`) checked, read-only; None: the paper's
+    ``F(theta_o) G1(theta_o)``.
+
+    Read-only whatever it was: numba compiles a kernel once per type, and a read-only array is
+    another type than a writable one (`view_table`'s are read-only, cached; an empty one was not,
+    which cost every model kernel a second compile).
+    """
+    view = np.empty((0, 2, 3, 0)) if view is None else np.ascontiguousarray(view, np.float64)
     if view.ndim != 4 or view.shape[1] != 2 or view.shape[2] not in (1, 3) or (view.size and min(view.shape[0], view.shape[3]) < 2):
         raise ValueError(f"view must be a view_table, got shape {view.shape}")
+    view = view.view()  # a view's flag can be cleared without touching the caller's array
+    view.flags.writeable = False
     return view
 
 
