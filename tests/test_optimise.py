@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -545,8 +547,9 @@ def test_optimise_is_deterministic(small: dict, kw: dict) -> None:
 
 
 def test_a_table_read_from_disk_gives_the_estimate_of_one_fitted_inside(small: dict, tmp_path) -> None:
-    """Rule light_table's table, written and read back, changes no bit of the estimate; a table of
-    another size than the settings' is refused."""
+    """Rule light_table's table, written and read back, changes no bit of the estimate, and the
+    estimate uses it (a table altered on disk changes the estimate); a table of another size
+    than the settings' is refused."""
     size = TableSize(rows=6, rank=4)
     settings = OptimiseSettings.paper(iterations=20, refit_every=7, light_table=size)
     write_light_table(tmp_path / "t", shadowed_light_table(small["light"], size.rows, size.rank))
@@ -557,6 +560,9 @@ def test_a_table_read_from_disk_gives_the_estimate_of_one_fitted_inside(small: d
     for k in TEXTURES:
         np.testing.assert_array_equal(inside.params[k], read.params[k])
     np.testing.assert_array_equal(inside.loss_curve, read.loss_curve)
+    altered = dataclasses.replace(table, coefficients=2.0 * table.coefficients)
+    doubled = optimise(obs, small["irradiance"], small["light"], None, "freq", settings=settings, table=altered)
+    assert not np.array_equal(doubled.loss_curve, read.loss_curve)
     other = OptimiseSettings.paper(iterations=2, light_table=TableSize(rows=8, rank=4))
     with pytest.raises(ValueError, match="asks rows 8"):
         optimise(obs, small["irradiance"], small["light"], None, "freq", settings=other, table=table)

@@ -894,7 +894,7 @@ def test_compared_pose_sources_are_estimated_relit_and_scored(repo, run, tmp_pat
 # to the next through the shared working directory, and the run stays short.
 SLURM_STAGES = {
     "prep": ["build_env", "build_object", "render_capture"],
-    "estimate": ["extract_observations", "fit_sh", "spectrum_search", "optimise_svbrdf"],
+    "estimate": ["extract_observations", "fit_sh", "spectrum_search", "light_table", "optimise_svbrdf"],
     "evaluate": ["relight"],
 }
 

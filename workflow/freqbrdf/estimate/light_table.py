@@ -26,7 +26,6 @@ fits it once per map (`write_light_table`) and every estimate under that map rea
 
 from __future__ import annotations
 
-import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,9 +41,9 @@ from freqbrdf.util.io import atomic_path, read_json, write_json
 from freqbrdf.util.validation import check_finite, check_int, check_shape
 
 __all__ = ["TableSize", "ShadowingBasis", "shadowing_basis", "ShadowedLightTable", "shadowed_light_table",
-           "light_fingerprint", "write_light_table", "read_light_table"]
+           "light_signature", "write_light_table", "read_light_table"]
 
-LIGHT_TABLE_FORMAT = "freqbrdf-light-table/1"
+LIGHT_TABLE_FORMAT = "freqbrdf-light-table/2"
 
 _MU_SAMPLES = 1025  # samples of each u_k in cos theta: linear interpolation within 1e-5 of G1's own
 _ROUGHNESS_SAMPLES = 257
@@ -131,14 +130,14 @@ class ShadowedLightTable:
         (`freqbrdf.sphere.sampling.equirect_directions`).
     coefficients : numpy.ndarray
         Shape ``(2 rows^2, R, (lmax+1)^2, C)``, float32: ``Lg_k`` at each grid normal.
-    light : str
-        `light_fingerprint` of the light it was fitted from.
+    light : numpy.ndarray
+        Shape ``((lmax+1)^2, C)``: `light_signature` of the light it was fitted from.
     """
 
     basis: ShadowingBasis
     rows: int
     coefficients: np.ndarray
-    light: str
+    light: np.ndarray
 
     def check_fits(self, light: LightQuadrature, size: TableSize) -> None:
         """Raise ValueError unless this table was fitted from ``light`` at ``size``."""
@@ -147,7 +146,11 @@ class ShadowedLightTable:
         if have != want:
             raise ValueError(f"table of rows {have[0]}, rank {have[1]} and {have[2]} SH coefficients, but "
                              f"optimise.light_table asks rows {want[0]}, rank {want[1]} and the light has {want[2]}")
-        if self.light != light_fingerprint(light):
+        signature = light_signature(light)
+        # a tolerance, not equality: the table may come from another machine, whose vector maths
+        # and BLAS round the same light differently in the last bits
+        if self.light.shape != signature.shape or not np.allclose(
+                self.light, signature, rtol=_SIGNATURE_RTOL, atol=_SIGNATURE_RTOL * np.abs(signature).max()):
             raise ValueError("table fitted from another light than this estimate's (another map, optimise.lmax "
                              "or optimise.point_sources)")
 
@@ -219,31 +222,33 @@ def shadowed_light_table(quadrature: LightQuadrature, rows: int, rank: int, work
 
     lg = project_factors(quadrature, grid.shape[0] * r, factors, workers, multiple=r)
     coefficients = lg.reshape(grid.shape[0], r, *lg.shape[1:])
-    return ShadowedLightTable(basis=basis, rows=rows, coefficients=coefficients, light=light_fingerprint(quadrature))
+    return ShadowedLightTable(basis=basis, rows=rows, coefficients=coefficients, light=light_signature(quadrature))
 
 
-def light_fingerprint(quadrature: LightQuadrature) -> str:
-    """SHA-256 of what a table fitted from ``quadrature`` depends on: its degree and its nodes'
-    directions and weighted radiance (so the map, the point sources taken out of it and any
-    pre-filter)."""
-    digest = hashlib.sha256(f"{quadrature.lmax} {quadrature.n_rings}".encode())
-    for array in (quadrature.directions, quadrature.weighted_radiance):
-        digest.update(np.ascontiguousarray(array, dtype=np.float64).tobytes())
-    return digest.hexdigest()
+def light_signature(quadrature: LightQuadrature) -> np.ndarray:
+    """The unshadowed light's SH coefficients, by which a table knows the light it was fitted from
+    (another map, degree, pre-filter or set of point sources taken out of it changes them).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``((lmax+1)^2, C)``, float64: ``sum_q Y_lm(w_q) weighted_radiance_q``.
+    """
+    return quadrature.basis.T.astype(np.float64) @ np.asarray(quadrature.weighted_radiance, dtype=np.float64)
 
 
-_TABLE_ARRAYS = ("coefficients", "u", "v")
+_SIGNATURE_RTOL = 1e-6  # above rounding (the SH at the nodes are float32), below any other map or sources
+_TABLE_ARRAYS = ("coefficients", "u", "v", "light")
 
 
 def write_light_table(directory: str | os.PathLike, table: ShadowedLightTable) -> None:
     """Write ``table`` into ``directory`` (its arrays as ``.npy``, ``table.json`` with its format)."""
     directory = Path(directory)
-    arrays = {"coefficients": table.coefficients, "u": table.basis.u, "v": table.basis.v}
+    arrays = {"coefficients": table.coefficients, "u": table.basis.u, "v": table.basis.v, "light": table.light}
     for name in _TABLE_ARRAYS:
         with atomic_path(directory / f"{name}.npy") as path, open(path, "wb") as f:
             np.save(f, arrays[name])
-    write_json(directory / "table.json", {"format": LIGHT_TABLE_FORMAT, "rows": table.rows,
-                                          "rank": table.basis.rank, "light": table.light})
+    write_json(directory / "table.json", {"format": LIGHT_TABLE_FORMAT, "rows": table.rows, "rank": table.basis.rank})
 
 
 def read_light_table(directory: str | os.PathLike, light: LightQuadrature, size: TableSize) -> ShadowedLightTable:
@@ -266,7 +271,7 @@ def read_light_table(directory: str | os.PathLike, light: LightQuadrature, size:
         raise ValueError(f"{directory}: arrays disagree with rows {meta['rows']} and rank {rank} "
                          f"(coefficients {arrays['coefficients'].shape}, v {arrays['v'].shape})")
     table = ShadowedLightTable(basis=ShadowingBasis(u=arrays["u"], v=arrays["v"]), rows=int(meta["rows"]),
-                               coefficients=arrays["coefficients"], light=str(meta["light"]))
+                               coefficients=arrays["coefficients"], light=arrays["light"])
     try:
         table.check_fits(light, size)
     except ValueError as error:
