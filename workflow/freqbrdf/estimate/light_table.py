@@ -37,7 +37,7 @@ from freqbrdf.estimate.light import LightQuadrature, project_factors
 from freqbrdf.estimate.optimise.kernels import basis_factors
 from freqbrdf.sphere.brdf import alpha_from_roughness, smith_g1, tan2_theta
 from freqbrdf.sphere.sampling import equirect_directions
-from freqbrdf.util.io import atomic_path, read_json, write_json
+from freqbrdf.util.io import read_json, write_json
 from freqbrdf.util.validation import check_finite, check_int, check_shape
 
 __all__ = ["TableSize", "ShadowingBasis", "shadowing_basis", "ShadowedLightTable", "shadowed_light_table",
@@ -242,13 +242,15 @@ _TABLE_ARRAYS = ("coefficients", "u", "v", "light")
 
 
 def write_light_table(directory: str | os.PathLike, table: ShadowedLightTable) -> None:
-    """Write ``table`` into ``directory`` (its arrays as ``.npy``, ``table.json`` with its format)."""
+    """Write ``table`` into ``directory`` (its arrays as ``.npy``, ``table.json`` with its format
+    and rows), as `freqbrdf.artefacts.write_sh_fit` writes a fit: the rule makes the directory
+    whole or not at all (`freqbrdf.util.io.atomic_directory`)."""
     directory = Path(directory)
     arrays = {"coefficients": table.coefficients, "u": table.basis.u, "v": table.basis.v, "light": table.light}
+    directory.mkdir(parents=True, exist_ok=True)
     for name in _TABLE_ARRAYS:
-        with atomic_path(directory / f"{name}.npy") as path, open(path, "wb") as f:
-            np.save(f, arrays[name])
-    write_json(directory / "table.json", {"format": LIGHT_TABLE_FORMAT, "rows": table.rows, "rank": table.basis.rank})
+        np.save(directory / f"{name}.npy", arrays[name])
+    write_json(directory / "table.json", {"format": LIGHT_TABLE_FORMAT, "rows": table.rows})
 
 
 def read_light_table(directory: str | os.PathLike, light: LightQuadrature, size: TableSize) -> ShadowedLightTable:
