@@ -316,8 +316,9 @@ def mitsuba_settings(wildcards):
 
 # ---- input functions of rules/merge.smk
 def merge_envs(wildcards):
-    """Environments of every capture of the object, the one the merge is filed under first (ties go to it)."""
-    return [wildcards.env] + [e for o, e in CAPTURES if o == wildcards.object and e != wildcards.env]
+    """Environments of every capture of the object, in the config's order whichever capture the
+    merge is filed under (a tie is averaged: freqbrdf.estimate.merge.lowest_merge)."""
+    return [e for o, e in CAPTURES if o == wildcards.object]
 
 
 def merge_inputs(wildcards):

@@ -67,9 +67,8 @@ rule tables:
         stress=list(STRESS),
         # Which of the paper's environments each of ours stands beside (Table 2).
         env_kinds={env: config["envs"][env]["kind"] for env in ENVS},
-        # how the claims' intervals are drawn and which captures are real (freqbrdf.report.tables.claims)
+        # the claims' intervals' level and which captures are real (freqbrdf.report.tables.claims)
         intervals=config["evaluate"]["intervals"],
-        intervals_seed=derived_seed(config["seed"], "intervals"),
         real_objects=list(REAL_CAPTURES),
         # what the report's landing summary says was run (freqbrdf.report.tables.summary.run_facts)
         run={

@@ -18,13 +18,14 @@ def main(smk, log):
         scores = [read_entropy(d).atlas for d in smk.input.entropy]
     merged, choice = lowest_merge(estimates, scores)
     shares = {env: float(np.mean(choice == k)) for k, env in enumerate(smk.params.envs)}
-    log.info("by the %s, texels taken from each capture: %s", smk.params.merged_by,
-             ", ".join(f"{e} {v:.1%}" for e, v in shares.items()))
+    tied = float(np.mean(choice == -1))
+    log.info("by the %s, texels taken from each capture: %s; tied and averaged %.1f%%", smk.params.merged_by,
+             ", ".join(f"{e} {v:.1%}" for e, v in shares.items()), 100 * tied)
     with atomic_directory(smk.output.estimate) as tmp:
         write_svbrdf(tmp, merged)
         np.save(tmp / "choice.npy", choice.astype(np.int8))
         write_json(tmp / "merge.json", {"captures": list(smk.params.envs), "merged_by": smk.params.merged_by,
-                                        "share_of_atlas": shares, "estimates": list(smk.input.estimates)})
+                                        "share_of_atlas": shares, "share_tied": tied, "estimates": list(smk.input.estimates)})
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)

@@ -7,7 +7,7 @@ from freqbrdf.util.io import atomic_path
 from freqbrdf.util.logs import run_script
 from freqbrdf.report.tables.paper import read_paper_results
 from freqbrdf.report.tables.render import html_page, to_html, to_latex, to_markdown
-from freqbrdf.report.intervals import Bootstrap
+from freqbrdf.report.intervals import IntervalSettings
 from freqbrdf.report.tables.claims import ClaimContext
 from freqbrdf.report.tables.summary import mitsuba_budget, run_facts, run_summary_html, summaries
 from freqbrdf.report.tables.tables import headline_table
@@ -26,7 +26,7 @@ def main(smk, log):
     metrics = metrics[(metrics.poses == smk.params.poses) & ~metrics.object.isin(smk.params.stress)]
     if metrics.empty:
         raise ValueError(f"{smk.input.metrics}: no rows with poses == {smk.params.poses!r}")
-    context = ClaimContext(Bootstrap.from_config(smk.params.intervals, smk.params.intervals_seed),
+    context = ClaimContext(IntervalSettings.from_config(smk.params.intervals),
                            mitsuba_budget(smk.params.run["mitsuba"]), frozenset(smk.params.real_objects))
     tables = summaries(metrics, read_paper_results(smk.input.paper), smk.params.env_kinds, context)
     for summary in tables:
@@ -42,7 +42,7 @@ def main(smk, log):
     write_text(smk.output.claims_html, html_page("FreqBRDF: the paper's claims, checked",
                                                  to_html(claims.table, None, claims.caption, verdicts="holds")))
     write_text(smk.output.run_summary, run_summary_html(run_facts(smk.params.run), claims.table,
-                                                         headline_table(metrics, context.boot)))
+                                                         headline_table(metrics, context.intervals)))
     verdicts = claims.table.holds.value_counts().to_dict()
     log.info("claims: %s", ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items())))
 

@@ -42,10 +42,11 @@ def lowest_merge(
     Returns
     -------
     merged : Svbrdf
-        The merged textures.
+        The merged textures. Where several estimates tie for the lowest score (the entropy is 1
+        wherever a capture did not observe the texel), their mean: the merge is the same in
+        whatever order the estimates come, so it does not depend on the capture it is filed under.
     choice : ndarray, shape (R, R), int
-        Index of the estimate each texel was taken from; ties go to the earliest
-        (put the capture the merge is filed under first).
+        Index of the estimate each texel was taken from; -1 where several tied and were averaged.
     """
     if len(estimates) == 0 or len(estimates) != len(scores):
         raise ValueError(f"lowest_merge: {len(estimates)} estimates and {len(scores)} uncertainty maps; "
@@ -57,10 +58,15 @@ def lowest_merge(
             raise ValueError(f"lowest_merge: estimate {k} is {estimate['roughness'].shape}, uncertainty maps {shape}")
     if not np.all(np.isfinite(h)):
         raise ValueError("lowest_merge: uncertainty maps hold NaN/Inf values")
-    choice = np.argmin(h, axis=0)
+    lowest = h == h.min(axis=0)  # (E, R, R)
+    tied = lowest.sum(axis=0)
+    choice = np.where(tied > 1, -1, np.argmax(lowest, axis=0))
     merged = {}
     for name in TEXTURES:
-        stack = np.stack([np.asarray(e[name]) for e in estimates])  # (E, R, R[, 3])
-        index = choice.reshape((1,) + shape + (1,) * (stack.ndim - 3))
-        merged[name] = np.take_along_axis(stack, index, axis=0)[0]
+        textures = [np.asarray(e[name]) for e in estimates]
+        stack = np.stack(textures).astype(np.float64)  # (E, R, R[, 3])
+        mask = lowest.reshape(lowest.shape + (1,) * (stack.ndim - 3))
+        # summed in sorted order, so that the mean of the tied is the same bits in any order of the estimates
+        total = np.sort(np.where(mask, stack, 0.0), axis=0).sum(axis=0)
+        merged[name] = (total / tied.reshape(mask.shape[1:])).astype(np.result_type(*textures))
     return Svbrdf(**merged), choice

@@ -22,7 +22,8 @@ def fmt(value: float | None, digits: int = 3, unit: str = "") -> str:
 
 
 def fmt_interval(interval, digits: int = 3, unit: str = "", sign: bool = False) -> str:
-    """A statistic and its interval, e.g. ``0.036 [0.031, 0.042]``; ``-`` for None or NaN.
+    """A statistic and its interval, e.g. ``0.036 [0.031, 0.042]``; ``0.036 [n = 1]`` without one;
+    ``-`` for None or NaN.
 
     Parameters
     ----------
@@ -37,6 +38,8 @@ def fmt_interval(interval, digits: int = 3, unit: str = "", sign: bool = False) 
     if interval is None or math.isnan(interval.value):
         return MISSING
     form = f"{'+' if sign else ''}.{digits}f"
+    if math.isnan(interval.low):  # one capture (or object): no interval
+        return f"{interval.value:{form}}{unit} [n = {interval.captures}]"
     value, low, high = (f"{x:{form}}{unit}" for x in (interval.value, interval.low, interval.high))
     return f"{value} [{low}, {high}]"
 

@@ -160,7 +160,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
     n_captures = len(df[["object", "env"]].drop_duplicates())
     n_truth = len(df[df.metric == "mse_average"][["object", "env"]].drop_duplicates())
     scope = (f"Ours: means over this run's {n_captures} capture(s), {n_truth} with ground truth, and in brackets "
-             f"their {100 * context.boot.level:g}% bootstrap interval over captures and test views "
+             f"their {100 * context.intervals.level:g}% t-interval over captures (objects for a merge) "
              "(docs/metrics.md, Intervals); "
              "(parameter MSE, relighting); times on 2 CPU cores. "
              "Paper: Wiersma et al. 2024 (arXiv 2406.17774), on an RTX 4090.")
@@ -170,7 +170,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "against ground-truth renders under environments not seen in training, mean over test views. "
                 "The paper's numbers are on Stanford-ORB photographs; ours on the synthetic benchmark. "
                 "LPIPS is not computed (no network weights offline). " + scope,
-                relighting_table(df, paper, context.boot)),
+                relighting_table(df, paper, context.intervals)),
         Summary("table2_parameters", "Table 2: parameter MSE per capture environment",
                 "Average (base colour, roughness, metallic) MSE against the ground-truth textures over "
                 "observed texels; 'paper' rows give the paper's value for the environment of the same kind. "
@@ -179,7 +179,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "after a per-channel least-squares scale (Stanford-ORB), sRGB; both means over captures. "
                 "Error-entropy correlation: Pearson correlation between our entropy and the method's "
                 "per-texel squared error (the paper correlates with Mitsuba's). " + scope,
-                parameter_table(df, paper, env_kinds, boot=context.boot)),
+                parameter_table(df, paper, env_kinds, intervals=context.intervals)),
         Summary("table3_agreement", "Table 3: entropy agreement",
                 "Pearson correlation, over a seeded sample of each capture's observed texels, of each entropy "
                 "with the entropy of a grid of uniform materials (roughness x metallic x base colour) path traced "
@@ -192,22 +192,24 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "rh2001 has neither (Ramamoorthi and Hanrahan 2001). The paper's relighting numbers are on "
                 "Stanford-ORB and its MSE and time on its synthetic set, both without cosine weighting of "
                 "the samples; ours use cosine weighting. " + scope,
-                ablation_table(df, paper, boot=context.boot)),
+                ablation_table(df, paper, intervals=context.intervals)),
         Summary("table5_finetune", "Table 5: fine-tuning with Mitsuba",
                 "A short Mitsuba optimisation started from our textures (freq+mitsuba) against Mitsuba's "
                 "full optimisation from a constant (mitsuba) and our textures alone (freq). Total time "
                 "includes the initialisation. Rows without a method of ours are not in this pipeline. " + scope,
-                finetune_table(df, paper, boot=context.boot)),
+                finetune_table(df, paper, intervals=context.intervals)),
         Summary("table6_merge", "Table 6: captures merged by uncertainty", _merge_caption() + scope,
-                merge_table(df, paper, boot=context.boot)),
+                merge_table(df, paper, intervals=context.intervals)),
         Summary("uncertainty", "Uncertainty: does the entropy rank the errors better than the view count?",
-                _UNCERTAINTY_CAPTION + scope, uncertainty_table(df, context.boot)),
+                _UNCERTAINTY_CAPTION + scope, uncertainty_table(df, context.intervals)),
         Summary("claims", "Claims of the paper, checked on this run",
-                f"Each number: mean [{100 * context.boot.level:g}% interval], a bootstrap over captures and, within "
-                "each, over relighting environments and test views; differences paired capture by capture. "
+                f"Each number: mean [{100 * context.intervals.level:g}% interval], Student's t over the captures' "
+                "means (each over its relighting environments and test views; over objects for a merge); "
+                "differences paired capture by capture. A claim that reads Mitsuba's estimate is judged on "
+                "the captures where Mitsuba converged, all captures beside, and not judged when fewer than half did. "
                 "holds: 'yes' when the criterion holds at the interval's unfavourable end, 'no' when it fails "
                 "at the favourable end, 'within noise' otherwise; 'not judged' when the numbers cannot decide "
-                "it (a baseline that has not converged, no interval), 'not run' when a method it needs did "
+                "it (too few converged baselines, no interval), 'not run' when a method it needs did "
                 "not run. " + scope,
                 claims(df, paper, context)),
     ]

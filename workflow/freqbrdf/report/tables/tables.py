@@ -18,12 +18,12 @@ from collections.abc import Mapping, Sequence
 import pandas as pd
 
 from freqbrdf.methods import METHODS, ablation_method, paper_method
-from freqbrdf.report.intervals import Bootstrap
+from freqbrdf.report.intervals import IntervalSettings
 from freqbrdf.report.tables.display import (MISSING, NOT_RUN, fmt, fmt_interval, fmt_paper, fmt_ratio, fmt_time,
                                             method_label, ordered_methods)
 from freqbrdf.report.tables.paper import AGREEMENT_ROWS, AVERAGE, MERGE_AVERAGE, MITSUBA, PaperResults
-from freqbrdf.report.tables.tidy import (capture_metric, equal_accuracy_ratio, mean_metric, method_time,
-                                         metric_interval, ran, speed_ratio, unit_values)
+from freqbrdf.report.tables.tidy import (capture_metric, cluster_keys, equal_accuracy_ratio, mean_metric,
+                                         method_time, metric_interval, ran, speed_ratio, unit_values)
 
 
 def _ours(df: pd.DataFrame, method: str | None, text: str) -> str:
@@ -42,14 +42,14 @@ def _mse_cell(values: Sequence[float | None], digits: int, average: str | None =
     return f"{average or fmt(avg, digits)} ({', '.join(fmt(p, digits) for p in parts)})"
 
 
-def _mean(df: pd.DataFrame, method: str | None, metric: str, digits: int, boot: Bootstrap | None) -> str:
+def _mean(df: pd.DataFrame, method: str | None, metric: str, digits: int, intervals: IntervalSettings | None) -> str:
     """A method's mean of a metric over the captures (and test views), with its interval when
-    ``boot`` is given (:mod:`freqbrdf.report.intervals`); ``-`` when it has none."""
+    ``intervals`` is given (:mod:`freqbrdf.report.intervals`); ``-`` when it has none."""
     if method is None:
         return MISSING
-    if boot is None:
+    if intervals is None:
         return fmt(mean_metric(df, method, metric), digits)
-    return fmt_interval(metric_interval(unit_values(df, method, metric), boot), digits)
+    return fmt_interval(metric_interval(unit_values(df, method, metric), intervals, cluster_keys(method)), digits)
 
 
 _RELIGHT_METRICS = (("psnr_h", "PSNR-H", 2), ("psnr_l", "PSNR-L", 2), ("ssim", "SSIM", 3))
@@ -60,18 +60,18 @@ _BRDF_METRICS = (("brdf_log_rmse", "BRDF log-RMSE", 3), ("base_color_si_psnr", "
 
 
 def _relight_cells(df: pd.DataFrame, method: str | None, paper: Mapping[str, float] | None,
-                   boot: Bootstrap | None = None) -> dict[str, str]:
+                   intervals: IntervalSettings | None = None) -> dict[str, str]:
     """PSNR-H, PSNR-L and SSIM of a method (mean over captures, relighting
-    environments and test views, with its interval when ``boot`` is given), each
+    environments and test views, with its interval when ``intervals`` is given), each
     followed by the paper's value."""
     cells = {}
     for metric, label, digits in _RELIGHT_METRICS:
-        cells[label] = _ours(df, method, _mean(df, method, metric, digits, boot))
+        cells[label] = _ours(df, method, _mean(df, method, metric, digits, intervals))
         cells[f"{label} (paper)"] = fmt(paper[metric], digits) if paper else MISSING
     return cells
 
 
-def relighting_table(df: pd.DataFrame, paper: PaperResults, boot: Bootstrap | None = None) -> pd.DataFrame:
+def relighting_table(df: pd.DataFrame, paper: PaperResults, intervals: IntervalSettings | None = None) -> pd.DataFrame:
     """Paper Table 1: relighting under held-out environments, per method.
 
     Rows are the paper's (ours beside them where the registry has one, ``not
@@ -82,7 +82,7 @@ def relighting_table(df: pd.DataFrame, paper: PaperResults, boot: Bootstrap | No
     df : DataFrame
         Tidy metrics (:func:`freqbrdf.report.tables.tidy.check_tidy`).
     paper : PaperResults
-    boot : Bootstrap, optional
+    intervals : IntervalSettings, optional
         Show each mean with its interval.
 
     Returns
@@ -94,7 +94,7 @@ def relighting_table(df: pd.DataFrame, paper: PaperResults, boot: Bootstrap | No
     rows = []
     for label, values in paper.table1.items():
         method = paper_method("table1", label)
-        row = {"Method": label, "method": method or MISSING, **_relight_cells(df, method, values, boot)}
+        row = {"Method": label, "method": method or MISSING, **_relight_cells(df, method, values, intervals)}
         row["Time"] = _ours(df, method, fmt_time(method_time(df, method)) if method else MISSING)
         row["Time (paper)"] = fmt_time(values["time_s"])
         row |= _speed_cells(df, method, paper.table1[MITSUBA]["time_s"] / values["time_s"])
@@ -103,7 +103,7 @@ def relighting_table(df: pd.DataFrame, paper: PaperResults, boot: Bootstrap | No
     for method in ordered_methods(df[df.relight_env != ""].method):
         if method in listed:
             continue
-        row = {"Method": method_label(method), "method": method, **_relight_cells(df, method, None, boot)}
+        row = {"Method": method_label(method), "method": method, **_relight_cells(df, method, None, intervals)}
         row["Time"] = fmt_time(method_time(df, method))
         row["Time (paper)"] = MISSING
         row |= _speed_cells(df, method, None)
@@ -134,7 +134,7 @@ def _paper_column(env: str, env_kinds: Mapping[str, str], paper: PaperResults) -
 
 
 def _mse_rows(df: pd.DataFrame, paper: PaperResults, headers: Mapping[str, str],
-              env_kinds: Mapping[str, str], digits: int, boot: Bootstrap | None) -> list[dict[str, str]]:
+              env_kinds: Mapping[str, str], digits: int, intervals: IntervalSettings | None) -> list[dict[str, str]]:
     """The MSE rows of Table 2: the paper's rows, each with ours below, then our other methods."""
     paired = [(label, paper_method("table2", label)) for label in paper.table2]
     listed = {method for _, method in paired}
@@ -155,7 +155,7 @@ def _mse_rows(df: pd.DataFrame, paper: PaperResults, headers: Mapping[str, str],
         for env, header in headers.items():
             parts = [mean_metric(df, method, p, env=env) for p in _MSE_METRICS]
             row[header] = _ours(df, method, _mse_cell(parts, digits))
-        average = _mean(df, method, "mse_average", digits, boot) if boot else None
+        average = _mean(df, method, "mse_average", digits, intervals) if intervals else None
         row["Avg."] = _ours(df, method, _mse_cell([mean_metric(df, method, p) for p in _MSE_METRICS], digits, average))
         for metric, label, decimals in _BRDF_METRICS:
             row[label] = _ours(df, method, fmt(mean_metric(df, method, metric), decimals))
@@ -191,7 +191,7 @@ def _correlation_rows(df: pd.DataFrame, paper: PaperResults, headers: Mapping[st
 
 
 def parameter_table(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str] | None = None,
-                    digits: int = 3, boot: Bootstrap | None = None) -> pd.DataFrame:
+                    digits: int = 3, intervals: IntervalSettings | None = None) -> pd.DataFrame:
     """Paper Table 2: parameter MSE per capture environment, with the error-entropy correlation.
 
     Cells read ``average (base colour, roughness, metallic)``, means over
@@ -211,7 +211,7 @@ def parameter_table(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[st
         ``overcast``); by default an environment's name is its kind.
     digits : int
         Decimals of our numbers (the paper prints 2).
-    boot : Bootstrap, optional
+    intervals : IntervalSettings, optional
         Show our average MSE over all captures with its interval.
 
     Returns
@@ -224,12 +224,12 @@ def parameter_table(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[st
     for env in _ordered_envs(df, env_kinds):
         column = _paper_column(env, env_kinds, paper)
         headers[env] = f"{env} [paper: {column}]" if column else env
-    rows = _mse_rows(df, paper, headers, env_kinds, digits, boot) + _correlation_rows(df, paper, headers, env_kinds)
+    rows = _mse_rows(df, paper, headers, env_kinds, digits, intervals) + _correlation_rows(df, paper, headers, env_kinds)
     columns = ["Method", "source", *headers.values(), "Avg.", *(label for _, label, _ in _BRDF_METRICS), "Time"]
     return pd.DataFrame(rows, columns=columns).fillna(MISSING)
 
 
-def ablation_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot: Bootstrap | None = None) -> pd.DataFrame:
+def ablation_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, intervals: IntervalSettings | None = None) -> pd.DataFrame:
     """Paper Table 4: the BRDF model with and without shadowing and masking.
 
     Our relighting metrics (synthetic, held-out environments) stand beside the
@@ -245,8 +245,8 @@ def ablation_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot:
     for values in paper.table4.values():
         method = ablation_method(values.shadowing, values.masking)
         row = {"Shadowing": "yes" if values.shadowing else "no", "Masking": "yes" if values.masking else "no",
-               "method": method, **_relight_cells(df, method, values.values, boot)}
-        row["MSE"] = _ours(df, method, _mean(df, method, "mse_average", digits, boot))
+               "method": method, **_relight_cells(df, method, values.values, intervals)}
+        row["MSE"] = _ours(df, method, _mean(df, method, "mse_average", digits, intervals))
         row["MSE (paper)"] = fmt(values.values["mse"], 2)
         row["Time"] = _ours(df, method, fmt_time(method_time(df, method)))
         row["Time (paper)"] = fmt_time(values.values["time_s"])
@@ -254,7 +254,7 @@ def ablation_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot:
     return pd.DataFrame(rows)
 
 
-def finetune_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot: Bootstrap | None = None) -> pd.DataFrame:
+def finetune_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, intervals: IntervalSettings | None = None) -> pd.DataFrame:
     """Paper Table 5: a short Mitsuba fine-tuning pass from different initialisations.
 
     Our parameter MSE is added (the paper reports none for this table).
@@ -267,15 +267,15 @@ def finetune_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot:
     rows = []
     for label, values in paper.table5.items():
         method = paper_method("table5", label)
-        row = {"Initialization": label, "method": method or MISSING, **_relight_cells(df, method, values, boot)}
-        row["MSE"] = _ours(df, method, _mean(df, method, "mse_average", digits, boot))
+        row = {"Initialization": label, "method": method or MISSING, **_relight_cells(df, method, values, intervals)}
+        row["MSE"] = _ours(df, method, _mean(df, method, "mse_average", digits, intervals))
         row["Total time"] = _ours(df, method, fmt_time(method_time(df, method)) if method else MISSING)
         row["Total time (paper)"] = fmt_time(values["time_s"])
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def merge_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot: Bootstrap | None = None) -> pd.DataFrame:
+def merge_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, intervals: IntervalSettings | None = None) -> pd.DataFrame:
     """Paper Table 6: each merged method beside the mean of the estimates it merges.
 
     Returns
@@ -295,7 +295,7 @@ def merge_table(df: pd.DataFrame, paper: PaperResults, digits: int = 3, boot: Bo
                                          MERGE_AVERAGE if merged_row else None),
                                         (method, method_label(method), merged_row)):
             parts = [mean_metric(df, shown, f"mse_{k}") for k in ("average", "base_color", "roughness", "metallic")]
-            average = _mean(df, shown, "mse_average", digits, boot) if boot else None
+            average = _mean(df, shown, "mse_average", digits, intervals) if intervals else None
             rows.append({"Method": label, "method": shown, "MSE": _mse_cell(parts, digits, average),
                          "MSE (paper)": _mse_cell(paper.table6[paper_row], 2) if paper_row else MISSING})
     return pd.DataFrame(rows, columns=["Method", "method", "MSE", "MSE (paper)"])
@@ -334,14 +334,14 @@ def agreement_table(df: pd.DataFrame, paper: PaperResults, digits: int = 2) -> p
                                        "Time (paper)"])
 
 
-def headline_table(df: pd.DataFrame, boot: Bootstrap | None = None) -> pd.DataFrame:
+def headline_table(df: pd.DataFrame, intervals: IntervalSettings | None = None) -> pd.DataFrame:
     """The run's headline numbers: one row per method (registry order), means over the captures.
 
     Parameters
     ----------
     df : DataFrame
         Tidy metrics (:func:`freqbrdf.report.tables.tidy.check_tidy`).
-    boot : Bootstrap, optional
+    intervals : IntervalSettings, optional
         Show the MSE and PSNR-H with their intervals.
 
     Returns
@@ -352,8 +352,8 @@ def headline_table(df: pd.DataFrame, boot: Bootstrap | None = None) -> pd.DataFr
         (observed texels), PSNR-H (dB, held-out relighting) and time per capture. The
         captures' own rows (empty method: the entropy agreement) are no method's.
     """
-    rows = [{"Method": f"{method_label(m)} ({m})", "Parameter MSE": _mean(df, m, "mse_average", 3, boot),
-             "PSNR-H": _mean(df, m, "psnr_h", 2, boot), "Time": fmt_time(method_time(df, m))}
+    rows = [{"Method": f"{method_label(m)} ({m})", "Parameter MSE": _mean(df, m, "mse_average", 3, intervals),
+             "PSNR-H": _mean(df, m, "psnr_h", 2, intervals), "Time": fmt_time(method_time(df, m))}
             for m in ordered_methods(df.method[df.method != ""])]
     return pd.DataFrame(rows, columns=["Method", "Parameter MSE", "PSNR-H", "Time"])
 
@@ -363,7 +363,7 @@ UNCERTAINTY_MAPS = (("entropy", "Entropy"), ("posterior", "Posterior"), ("views"
 """The uncertainty maps of :func:`uncertainty_table`'s AUSE columns: metric part, column label."""
 
 
-def uncertainty_table(df: pd.DataFrame, boot: Bootstrap | None = None, digits: int = 3) -> pd.DataFrame:
+def uncertainty_table(df: pd.DataFrame, intervals: IntervalSettings | None = None, digits: int = 3) -> pd.DataFrame:
     """How well the entropy ranks each entropy-scored method's per-texel errors, against trivial baselines.
 
     Parameters
@@ -371,7 +371,7 @@ def uncertainty_table(df: pd.DataFrame, boot: Bootstrap | None = None, digits: i
     df : DataFrame
         Tidy metrics with ``ause_<map>_<error>``, ``pearson_entropy_error`` and
         ``partial_pearson_entropy_error_views`` rows (:mod:`freqbrdf.report.sparsification`).
-    boot : Bootstrap, optional
+    intervals : IntervalSettings, optional
         Show each mean with its interval over captures.
 
     Returns
@@ -387,13 +387,13 @@ def uncertainty_table(df: pd.DataFrame, boot: Bootstrap | None = None, digits: i
     for method in ordered_methods(df.method[df.metric == "ause_entropy_parameter"]):
         for error, label in (("parameter", "parameter"), ("brdf", "BRDF")):
             row = {"Method": f"{method_label(method)} ({method})", "Error": label}
-            row |= {f"AUSE: {title}": _mean(df, method, f"ause_{name}_{error}", digits, boot)
+            row |= {f"AUSE: {title}": _mean(df, method, f"ause_{name}_{error}", digits, intervals)
                     for name, title in UNCERTAINTY_MAPS}
             correlations = error == "parameter"
-            row["Pearson r"] = _mean(df, method, "pearson_entropy_error", 2, boot) if correlations else ""
-            row["partial r | views"] = (_mean(df, method, "partial_pearson_entropy_error_views", 2, boot)
+            row["Pearson r"] = _mean(df, method, "pearson_entropy_error", 2, intervals) if correlations else ""
+            row["partial r | views"] = (_mean(df, method, "partial_pearson_entropy_error_views", 2, intervals)
                                         if correlations else "")
-            row["90% coverage"] = _mean(df, method, "coverage90_all", 3, boot) if correlations else ""
+            row["90% coverage"] = _mean(df, method, "coverage90_all", 3, intervals) if correlations else ""
             rows.append(row)
     columns = ["Method", "Error", *(f"AUSE: {t}" for _, t in UNCERTAINTY_MAPS), "Pearson r", "partial r | views",
                "90% coverage"]

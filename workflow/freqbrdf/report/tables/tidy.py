@@ -27,8 +27,9 @@ with an empty ``view``). Metric names:
 - ``mitsuba_time_to_match_s``, ``mitsuba_reached``, ``speed_ratio_equal_accuracy``:
   for the methods that need the observations, Mitsuba's time to reach their MSE
   and its ratio to their time from the capture (a lower bound when not reached);
-  ``speed_ratio_at_mitsuba_accuracy``: Mitsuba's time to its own converged MSE over
-  theirs, for those at least as accurate (NaN for the others);
+  ``speed_ratio_at_mitsuba_converged``: Mitsuba's time to its own converged MSE over
+  theirs (the paper's Table 2 comparison), and ``speed_ratio_at_mitsuba_accuracy``: the
+  same for those at least as accurate (NaN for the others);
   ``mitsuba_last_epoch_change``, ``mitsuba_converged``, ``mitsuba_time_to_converge_s``:
   whether the baseline converged, and when.
 """
@@ -39,7 +40,8 @@ from os import PathLike
 
 import pandas as pd
 
-from freqbrdf.report.intervals import Bootstrap, Interval, mean_interval
+from freqbrdf.methods import METHODS
+from freqbrdf.report.intervals import Interval, IntervalSettings, mean_interval
 
 TIDY_COLUMNS = ("object", "env", "poses", "method", "relight_env", "view", "metric", "value")
 _OPTIONAL = ("view",)  # a table without per-view rows may leave it out
@@ -132,14 +134,25 @@ def mitsuba_convergence(df: pd.DataFrame) -> tuple[bool, str]:
     return missed == 0, "converged" if missed == 0 else f"not converged on {missed} of {len(flags)} captures"
 
 
-def metric_interval(values: pd.Series, boot: Bootstrap) -> Interval | None:
-    """The mean over captures of per-unit values (:func:`unit_values`) with its bootstrap interval.
+def cluster_keys(*methods: str) -> tuple[str, ...]:
+    """The columns that name an interval's independent draw for numbers of ``methods``: the
+    capture, or the object where one of them merges an object's captures (one texture set per
+    object, filed under each of its captures)."""
+    merged = any(m in METHODS and METHODS[m].rule == "merge_svbrdf" for m in methods)
+    return ("object",) if merged else ("object", "env", "poses")
+
+
+def metric_interval(values: pd.Series, settings: IntervalSettings,
+                    clusters: tuple[str, ...] = ("object", "env", "poses")) -> Interval | None:
+    """The mean over clusters of per-unit values (:func:`unit_values`) with its interval.
 
     Parameters
     ----------
     values : Series
         Indexed by :data:`UNIT_KEYS`.
-    boot : Bootstrap
+    settings : IntervalSettings
+    clusters : tuple of str
+        Index levels naming a unit's cluster (:func:`cluster_keys`).
 
     Returns
     -------
@@ -149,8 +162,8 @@ def metric_interval(values: pd.Series, boot: Bootstrap) -> Interval | None:
     if values.empty:
         return None
     frame = values.index.to_frame(index=False)
-    captures = (frame.object + "/" + frame.env + "/" + frame.poses).tolist()
-    return mean_interval(values.to_numpy(), captures, boot)
+    groups = frame[list(clusters)].astype(str).agg("/".join, axis=1).tolist()
+    return mean_interval(values.to_numpy(), groups, settings)
 
 
 def mean_metric(df: pd.DataFrame, method: str, metric: str, **where: str) -> float | None:
