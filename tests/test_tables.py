@@ -622,14 +622,17 @@ def test_uncertainty_table_shows_each_maps_mean_ause_per_method_and_error():
               ("freq", "ause_entropy_brdf"): 0.25, ("freq", "ause_views_brdf"): 0.15, ("freq", "ause_light_brdf"): 0.35,
               ("freq", "ause_random_brdf"): 0.45, ("freq", "pearson_entropy_error"): 0.3,
               ("freq", "partial_pearson_entropy_error_views"): 0.08, ("freq", "ause_posterior_parameter"): 0.18,
-              ("freq", "ause_posterior_brdf"): 0.22, ("freq", "coverage90_all"): 0.6}
+              ("freq", "ause_posterior_brdf"): 0.22, ("freq", "coverage90_all"): 0.6,
+              ("freq", "coverage90_base_color"): 0.62, ("freq", "coverage90_roughness"): 0.56,
+              ("freq", "coverage90_metallic"): 0.58}
     rows = [(obj, "studio", m, metric, v * (1.5 if obj == "torus" else 1.0)) for obj in ("sphere", "torus")
             for (m, metric), v in values.items()]
     table = uncertainty_table(tidy(rows + mse_rows("mitsuba", 0.1)))  # mitsuba has no AUSE rows: no row
     assert list(table.Method) == ["Ours (freq)", "Ours (freq)"] and list(table.Error) == ["parameter", "BRDF"]
-    assert list(table.iloc[0, 2:]) == ["0.250", "0.225", "0.125", "0.375", "0.500", "0.38", "0.10", "0.750"]
+    assert list(table.iloc[0, 2:]) == ["0.250", "0.225", "0.125", "0.375", "0.500", "0.38", "0.10", "0.750",
+                                       "0.560 (sphere/studio, roughness)"]
     # 0.4375 is just below in binary
-    assert list(table.iloc[1, 2:]) == ["0.312", "0.275", "0.188", "0.437", "0.562", "", "", ""]
+    assert list(table.iloc[1, 2:]) == ["0.312", "0.275", "0.188", "0.437", "0.562", "", "", "", ""]
 
 
 def test_agreement_table_means_over_captures_beside_the_paper():

@@ -24,6 +24,7 @@ from freqbrdf.report.tables.display import (MISSING, NOT_RUN, fmt, fmt_interval,
 from freqbrdf.report.tables.paper import AGREEMENT_ROWS, AVERAGE, MERGE_AVERAGE, MITSUBA, PaperResults
 from freqbrdf.report.tables.tidy import (capture_metric, cluster_keys, equal_accuracy_ratio, mean_metric,
                                          method_time, metric_interval, ran, speed_ratio, unit_values)
+from freqbrdf.sphere.brdf import TEXTURES
 
 
 def _ours(df: pd.DataFrame, method: str | None, text: str) -> str:
@@ -378,10 +379,11 @@ def uncertainty_table(df: pd.DataFrame, intervals: IntervalSettings | None = Non
     -------
     DataFrame of str
         ``Method, Error, AUSE: Entropy, Posterior, -views, -light, Random, Pearson r, partial r | views,
-        90% coverage``: one row per method and error (parameter, BRDF); lower AUSE ranks better (the
+        90% coverage, 90% coverage, worst``: one row per method and error (parameter, BRDF); lower AUSE ranks better (the
         posterior's only for the methods of rule optimise_svbrdf); the correlations (parameter error
         only) with the entropy, then with the view count's linear part removed; the share of true
-        parameters inside the posterior's 90% intervals.
+        parameters inside the posterior's 90% intervals, pooled and at its lowest over the captures
+        and parameters (named).
     """
     rows = []
     for method in ordered_methods(df.method[df.metric == "ause_entropy_parameter"]):
@@ -394,7 +396,19 @@ def uncertainty_table(df: pd.DataFrame, intervals: IntervalSettings | None = Non
             row["partial r | views"] = (_mean(df, method, "partial_pearson_entropy_error_views", 2, intervals)
                                         if correlations else "")
             row["90% coverage"] = _mean(df, method, "coverage90_all", 3, intervals) if correlations else ""
+            row["90% coverage, worst"] = _worst_coverage(df, method, 3) if correlations else ""
             rows.append(row)
     columns = ["Method", "Error", *(f"AUSE: {t}" for _, t in UNCERTAINTY_MAPS), "Pearson r", "partial r | views",
-               "90% coverage"]
+               "90% coverage", "90% coverage, worst"]
     return pd.DataFrame(rows, columns=columns)
+
+
+def _worst_coverage(df: pd.DataFrame, method: str, digits: int) -> str:
+    """The lowest ``coverage90_<texture>`` over the captures and textures, e.g. ``0.815 (sphere/lobby,
+    roughness)``: the pooled coverage can hold while one capture's parameter misses; ``-`` without rows."""
+    names = {f"coverage90_{t}": t for t in TEXTURES}
+    rows = df[(df.method == method) & df.metric.isin(list(names)) & (df.view == "")].dropna(subset=["value"])
+    if rows.empty:
+        return MISSING
+    worst = rows.loc[rows.value.idxmin()]
+    return f"{fmt(worst.value, digits)} ({worst.object}/{worst.env}, {names[worst.metric]})"
