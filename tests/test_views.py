@@ -9,15 +9,19 @@ from freqbrdf.sphere.sampling import equirect_directions, fibonacci_hemisphere
 from freqbrdf.studies.views import view_subset, view_subsets
 
 
-def test_subsets_are_seeded_sorted_and_capped():
-    subsets = view_subsets(24, [12, 6, 24, 30], seed=3)
+def test_subsets_are_seeded_sorted_distinct_and_capped():
+    subsets = view_subsets(24, [12, 6, 24, 30], seed=3, subsets=3)
     assert list(subsets) == [6, 12, 24]  # 30 is every view, like 24
-    assert all(len(v) == c and (np.diff(v) > 0).all() for c, v in subsets.items())
-    np.testing.assert_array_equal(subsets[24], np.arange(24))
-    np.testing.assert_array_equal(view_subsets(24, [6], seed=3)[6], subsets[6])  # the seed decides
-    assert not np.array_equal(view_subsets(24, [6], seed=4)[6], subsets[6])
+    assert [len(v) for v in subsets.values()] == [3, 3, 1]  # every view is one subset
+    assert all(len(v) == c and (np.diff(v) > 0).all() for c, draws in subsets.items() for v in draws)
+    np.testing.assert_array_equal(subsets[24][0], np.arange(24))
+    assert not np.array_equal(subsets[6][0], subsets[6][1])  # several draws, not one repeated
+    np.testing.assert_array_equal(view_subsets(24, [6], seed=3)[6][0], subsets[6][0])  # the seed decides
+    assert not np.array_equal(view_subsets(24, [6], seed=4)[6][0], subsets[6][0])
     with pytest.raises(ValueError, match="views count must be >= 1, got 0"):
         view_subsets(24, [0], seed=0)
+    with pytest.raises(ValueError, match="evaluate.views_subsets must be >= 1, got 0"):
+        view_subsets(24, [6], seed=0, subsets=0)
 
 
 def test_subset_keeps_its_views_and_redraws_the_light_at_its_band_limit():

@@ -1,11 +1,11 @@
-# Parameter MSE and entropy with fewer training views (paper Fig. 8), on the first
-# synthetic capture (config evaluate.views_counts; none when the list is empty).
-VIEWS_CAPTURES = BENCHMARK_CAPTURES[:1] if config["evaluate"]["views_counts"] else []
+# Parameter MSE and entropy with fewer training views (paper Fig. 8), on every synthetic
+# capture (config evaluate.views_counts, views_subsets; none when the list is empty).
+VIEWS_CAPTURES = BENCHMARK_CAPTURES if config["evaluate"]["views_counts"] else []
 
 
 rule views_sweep:
     """freq's parameter MSE and the mean spectrum entropy of one capture restricted to seeded
-    random subsets of its training views, each with the band limit of its own count."""
+    random subsets of its training views (several per count), each with the band limit of its count."""
     input:
         unpack(lambda w: light_table_input(w, "freq")),
         observations=layout.OBSERVATIONS,
@@ -32,6 +32,7 @@ rule views_sweep:
         runtime=minutes(12, "texels"),
     params:
         counts=config["evaluate"]["views_counts"],
+        subsets=config["evaluate"]["views_subsets"],
         seed=lambda w: derived_seed(config["seed"], "views", w.object, w.env, w.poses),
         band_limit=config["observations"]["band_limit"],
         sh=config["sh"],

@@ -207,11 +207,13 @@ def equal_accuracy_rows(smk, rows, log):
 
 
 def views_rows(smk):
-    """views_<k>_mse_average and views_<k>_mean_entropy of freq on the views-sweep capture, per count k."""
+    """views_<k>_mse_average and views_<k>_mean_entropy of freq on each views-sweep capture, per
+    count k: the means over its seeded subsets."""
     rows = []
     for (obj, env, poses), table in keyed(smk.params.views, smk.input.views).items():
         key = dict(object=obj, env=env, poses=poses, method="freq", relight_env="")
-        for r in pd.read_csv(table, sep="\t").itertuples():
+        means = pd.read_csv(table, sep="\t").groupby("views", as_index=False)[["mse_average", "mean_entropy"]].mean()
+        for r in means.itertuples():
             rows += [key | dict(metric=f"views_{r.views}_mse_average", value=r.mse_average),
                      key | dict(metric=f"views_{r.views}_mean_entropy", value=r.mean_entropy)]
     return rows

@@ -73,7 +73,7 @@ def subsets(smk, obs, envmap, texels, directions, k, posterior, log):
                  errors[0], errors[-1])
     for i, seed in enumerate(p.seeds):
         start = time.perf_counter()
-        out[("random", i)] = (view_subsets(len(directions), [k], seed)[k], time.perf_counter() - start)
+        out[("random", i)] = (view_subsets(len(directions), [k], seed)[k][0], time.perf_counter() - start)
     return out
 
 

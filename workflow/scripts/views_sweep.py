@@ -1,5 +1,5 @@
 """Rule views_sweep: freq's parameter MSE and the mean entropy of one capture with seeded
-random subsets of its training views (paper Fig. 8)."""
+random subsets of its training views, several per count (paper Fig. 8)."""
 
 import time
 
@@ -28,7 +28,8 @@ def main(smk, log):
     table = (read_light_table(smk.input.light_table, light, settings.light_table)
              if "light_table" in smk.input.keys() else None)  # one table for every subset
     rows = []
-    for count, views in view_subsets(len(obs.meta["views"]), p.counts, p.seed).items():
+    subsets = view_subsets(len(obs.meta["views"]), p.counts, p.seed, p.subsets)
+    for subset, views in ((k, v) for draws in subsets.values() for k, v in enumerate(draws)):
         start = time.perf_counter()
         sub, search, estimate = estimate_subset(obs, views, envmap, p.band_limit, p.sh, p.spectrum, settings, light,
                                                 e, smk.threads, table)
@@ -36,10 +37,10 @@ def main(smk, log):
         scored = texels.texel[sub.observed]
         mse = parameter_mse(truth, Svbrdf.from_texels(texels.resolution, texels.texel, estimate, sub.observed), scored)
         known = sub.observed & ~search.unobserved
-        rows.append({"views": len(views), "observed_texels": int(sub.observed.sum()),
+        rows.append({"views": len(views), "subset": subset, "observed_texels": int(sub.observed.sum()),
                      "mean_entropy": float(search.entropy[known].mean()),
                      **{f"mse_{k}": v for k, v in mse.items()}, "seconds": time.perf_counter() - start})
-        log.info("%d views: %d texels observed, MSE %.4f, mean entropy %.3f (%.1f s)", len(views),
+        log.info("%d views (subset %d): %d texels observed, MSE %.4f, mean entropy %.3f (%.1f s)", len(views), subset,
                  rows[-1]["observed_texels"], mse["average"], rows[-1]["mean_entropy"], rows[-1]["seconds"])
     table = pd.DataFrame(rows)
     with atomic_path(smk.output.table) as f:
@@ -47,7 +48,7 @@ def main(smk, log):
     w = smk.wildcards
     views_figure(smk.output.figure, table, f"{w.object} / {w.env}: freq with fewer training views")
     if len(table) > 1:
-        log.info("Pearson correlation of MSE and mean entropy over %d counts: %.2f", len(table),
+        log.info("Pearson correlation of MSE and mean entropy over %d subsets: %.2f", len(table),
                  np.corrcoef(table.mse_average, table.mean_entropy)[0, 1])
 
 

@@ -365,17 +365,21 @@ def views_figure(path: str | os.PathLike, table: pd.DataFrame, title: str) -> No
     path : path-like
         PNG destination.
     table : DataFrame
-        Columns ``views``, ``mse_average``, ``mean_entropy``, one row per count.
+        Columns ``views``, ``mse_average``, ``mean_entropy``, one row per subset: the mean per
+        count is drawn as a line, each subset as a point.
     title : str
         Figure title.
     """
     plt = pyplot()
+    means = table.groupby("views", as_index=False)[["mse_average", "mean_entropy"]].mean()
     fig, ax = plt.subplots(figsize=(5.5, 3.4), layout="constrained")
-    ax.plot(table["views"], table["mse_average"], marker="o", color="tab:blue", label="parameter MSE")
+    ax.plot(means["views"], means["mse_average"], marker="o", color="tab:blue", label="parameter MSE")
+    ax.scatter(table["views"], table["mse_average"], s=8, color="tab:blue", alpha=0.5)
     ax.set_xlabel("training views")
     ax.set_ylabel("parameter MSE (freq)", color="tab:blue")
     twin = ax.twinx()
-    twin.plot(table["views"], table["mean_entropy"], marker="s", color="tab:red", label="mean entropy")
+    twin.plot(means["views"], means["mean_entropy"], marker="s", color="tab:red", label="mean entropy")
+    twin.scatter(table["views"], table["mean_entropy"], s=8, color="tab:red", alpha=0.5)
     twin.set_ylabel("mean entropy", color="tab:red")
     ax.set_title(title, fontsize=9)
     save_figure(fig, path, dpi=100)

@@ -28,20 +28,36 @@ from freqbrdf.util.validation import check_int
 __all__ = ["view_subsets", "view_subset", "mirror_light", "estimate_subset"]
 
 
-def view_subsets(n_views: int, counts: Sequence[int], seed: int) -> dict[int, np.ndarray]:
-    """A seeded random subset of ``range(n_views)`` for each count (sorted view indices;
-    counts at or above ``n_views`` all mean every view, keyed ``n_views``).
+def view_subsets(n_views: int, counts: Sequence[int], seed: int, subsets: int = 1) -> dict[int, list[np.ndarray]]:
+    """Seeded random subsets of ``range(n_views)`` for each count (sorted view indices).
+
+    Parameters
+    ----------
+    n_views : int
+        Views of the capture.
+    counts : sequence of int
+        Views kept; counts at or above ``n_views`` all mean every view, keyed ``n_views``.
+    seed : int
+    subsets : int
+        Subsets drawn per count below ``n_views`` (every view is one subset).
+
+    Returns
+    -------
+    dict of int to list of ndarray
+        Per count, in increasing order, its subsets.
 
     Raises
     ------
     ValueError
-        Naming a count below 1.
+        Naming a count or a number of subsets below 1.
     """
     n_views = check_int(n_views, "n_views", 1)
+    subsets = check_int(subsets, "evaluate.views_subsets", 1)
     rng = np.random.default_rng(seed)
     out = {}
     for count in sorted({min(check_int(c, "views count", 1), n_views) for c in counts}):
-        out[count] = np.arange(n_views) if count == n_views else np.sort(rng.choice(n_views, count, replace=False))
+        out[count] = ([np.arange(n_views)] if count == n_views else
+                      [np.sort(rng.choice(n_views, count, replace=False)) for _ in range(subsets)])
     return out
 
 
