@@ -18,22 +18,7 @@ from freqbrdf.util.io import read_exr, read_json, read_png
 from freqbrdf.scene.ply import read_ply
 from freqbrdf.report.tables.summary import SUMMARY_KEYS
 from synthetic import rewrite_z_up
-
-
-def snakemake(repo, workdir, *args, extra_config=(), check=True, base="tiny.yaml"):
-    # --configfile takes several values, so it goes last, after any targets.
-    configs = [str(repo / "config" / base), *map(str, extra_config)]
-    command = [sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"), "-d", str(workdir), "--cores", "2",
-               *args, "--configfile", *configs]
-    run = subprocess.run(command, capture_output=True, text=True, timeout=900)
-    if check and run.returncode != 0:
-        raise AssertionError(f"snakemake {' '.join(args)} failed:\n{run.stderr[-4000:]}")
-    return run
-
-
-def planned_jobs(output: str) -> dict[str, int]:
-    table = output.split("Job stats:")[1].split("total")[0]
-    return {m.group(1): int(m.group(2)) for m in re.finditer(r"^(\w+)\s+(\d+)$", table, re.M)}
+from workflow_runs import planned_jobs, snakemake
 
 
 def tiny_methods(repo) -> list[str]:
