@@ -310,3 +310,31 @@ def test_a_capture_without_a_usable_view_stops_naming_the_users_transforms(tmp_p
                                "every pixel is NaN/Inf: ./train/0000, ./train/0001, ./train/0002")
     assert str(tmp_path / "out") not in str(info.value)
     assert read_json(tmp_path / "out/train/source.json")["frames"]["0001"] == "./train/0001"
+
+
+@pytest.mark.parametrize("escape", ["dotdot", "absolute", "symlink", "mesh_symlink"])
+def test_a_capture_that_names_a_file_outside_itself_is_refused_before_anything_is_written(tmp_path, escape):
+    """A capture received from someone else reads only its own files: a frame's ``..``, an absolute
+    path, a frame or mesh linked out of the capture directory each stop the import in one line."""
+    orb = _orb(tmp_path / "orb")
+    outside = tmp_path / "outside"
+    (outside / "train_mask").mkdir(parents=True)
+    write_exr(outside / "secret.exr", np.full((30, 40, 3), 9.0, np.float32))
+    write_png(orb / "train_mask" / "secret.png", np.ones((30, 40)))
+    transforms = read_json(orb / "transforms_train.json")
+    if escape == "dotdot":
+        transforms["frames"][1]["file_path"] = "../outside/secret"
+    elif escape == "absolute":
+        transforms["frames"][1]["file_path"] = str(outside / "secret")
+    elif escape == "symlink":
+        (orb / "train" / "0001.exr").unlink()
+        (orb / "train" / "0001.exr").symlink_to(outside / "secret.exr")
+    else:
+        write_ply(outside / "mesh.ply", make_mesh("sphere"))
+        (orb / "mesh.ply").unlink()
+        (orb / "mesh.ply").symlink_to(outside / "mesh.ply")
+    write_json(orb / "transforms_train.json", transforms)
+    what = "the mesh" if escape == "mesh_symlink" else "frame .* of transforms_train.json"
+    with pytest.raises(ValueError, match=f"{what} leads to .*outside.*, outside the capture's directory"):
+        _import(orb, tmp_path / "out")
+    assert not (tmp_path / "out").exists()

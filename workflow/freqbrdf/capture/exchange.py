@@ -148,10 +148,30 @@ def cameras_from_blender(transforms: dict, width: int, height: int, source: str 
 
 
 
-def _frame_files(root: Path, split: str, file_path: str) -> tuple[Path, Path]:
-    """Image and mask files of one frame: ``{file_path}.exr`` and ``{split}_mask/{stem}.png``."""
+def inside(root: Path, path: Path, what: str) -> Path:
+    """``path`` if it lies inside ``root`` once ``..`` and symbolic links are resolved.
+
+    A capture received from someone else must only ever read its own files: a frame whose
+    ``file_path`` is ``../elsewhere/x``, an absolute path or a link out of the capture is refused.
+
+    Raises
+    ------
+    ValueError
+        One line naming ``what`` (e.g. the frame and its transforms file) and where the path leads.
+    """
+    target = path.resolve()
+    if not target.is_relative_to(root.resolve()):
+        raise ValueError(f"{root}: {what} leads to {target}, outside the capture's directory "
+                         "(a capture may only name files inside it)")
+    return path
+
+
+def _frame_files(root: Path, split: str, file_path: str, what: str) -> tuple[Path, Path]:
+    """Image and mask files of one frame: ``{file_path}.exr`` and ``{split}_mask/{stem}.png``, both
+    inside ``root`` (:func:`inside`; ``what`` names the frame)."""
     image = root / (file_path if file_path.endswith(".exr") else f"{file_path}.exr")
-    return image, root / f"{split}_mask" / f"{Path(file_path).stem}.png"
+    mask = root / f"{split}_mask" / f"{Path(file_path).stem}.png"
+    return inside(root, image, what), inside(root, mask, f"the mask of {what}")
 
 
 def export_capture(splits: dict[str, Path], mesh: Path, envmap: Path, out: Path) -> None:
@@ -298,6 +318,19 @@ def find_mesh(source: Path) -> Path:
     return found[0]
 
 
+def _frame_paths(source: Path, split: str) -> tuple[Path, dict, list[str]]:
+    """The transforms file of a split, its contents and its frames' ``file_path``, every frame's
+    files checked to lie inside ``source`` (:func:`inside`)."""
+    transforms_file = source / f"transforms_{split}.json"
+    transforms = read_json(transforms_file)
+    paths = [str(f.get("file_path", "")) for f in transforms.get("frames", [])] if isinstance(transforms, dict) else []
+    if not paths:
+        raise ValueError(f"{transforms_file}: no frames")
+    for file_path in paths:
+        _frame_files(source, split, file_path, f"frame {file_path!r} of {transforms_file.name}")
+    return transforms_file, transforms, paths
+
+
 def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Path, *,
                    up_axis: str = "y", camera: str = "opengl", atlas: AtlasSettings | None = None,
                    log: logging.Logger | None = None) -> dict[str, int]:
@@ -341,19 +374,18 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
         raise FileNotFoundError(f"{source}: capture directory not found")
     from freqbrdf.capture.mesh_io import read_mesh
 
+    # Every path the capture names stays inside it, checked before anything is read or written.
+    frames = {split: _frame_paths(source, split) for split in splits}
     # Mesh and environment first: they are few and the most likely to be wrong.
-    oriented = orient_mesh(read_mesh(find_mesh(source), atlas, log), up_axis)
+    mesh_file = inside(source, find_mesh(source), "the mesh")
+    oriented = orient_mesh(read_mesh(mesh_file, atlas, log), up_axis)
     if not (source / "envmap.exr").is_file():
         raise FileNotFoundError(f"{source / 'envmap.exr'}: the capture's envmap.exr is missing")
-    train_env = checked_envmap(source / "envmap.exr", log)
+    train_env = checked_envmap(inside(source, source / "envmap.exr", "envmap.exr"), log)
     counts = {}
     for split, out in splits.items():
-        transforms_file = source / f"transforms_{split}.json"
-        transforms = read_json(transforms_file)
-        paths = [str(f.get("file_path", "")) for f in transforms.get("frames", [])] if isinstance(transforms, dict) else []
-        if not paths:
-            raise ValueError(f"{transforms_file}: no frames")
-        first_image, _ = _frame_files(source, split, paths[0])
+        transforms_file, transforms, paths = frames[split]
+        first_image, _ = _frame_files(source, split, paths[0], f"frame {paths[0]!r} of {transforms_file.name}")
         if not first_image.is_file():
             raise FileNotFoundError(f"{first_image}: frame {paths[0]!r} of {transforms_file.name} is missing")
         height, width = checked_view(first_image).shape[:2]
@@ -362,7 +394,7 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
         for sub in ("images", "masks") + (("envmaps",) if per_view_envs else ()):
             (out / sub).mkdir(parents=True, exist_ok=True)
         for name, file_path in zip(cameras.names, paths):
-            image, mask = _frame_files(source, split, file_path)
+            image, mask = _frame_files(source, split, file_path, f"frame {file_path!r} of {transforms_file.name}")
             if not image.is_file():
                 raise FileNotFoundError(f"{image}: frame {file_path!r} of {transforms_file.name} is missing")
             checked_view(image, (height, width))
@@ -370,7 +402,9 @@ def import_capture(source: Path, splits: dict[str, Path], mesh: Path, envmap: Pa
             shutil.copyfile(image, out / "images" / f"{name}.exr")
             write_png(out / "masks" / f"{name}.png", checked_mask(mask, (height, width)))
             if per_view_envs:
-                write_exr(out / "envmaps" / f"{name}.exr", checked_envmap(source / "test_env" / f"{Path(file_path).stem}.exr", log))
+                env_file = inside(source, source / "test_env" / f"{Path(file_path).stem}.exr",
+                                  f"the environment of frame {file_path!r}")
+                write_exr(out / "envmaps" / f"{name}.exr", checked_envmap(env_file, log))
         write_json(out / "cameras.json", cameras_to_json(cameras))
         write_json(out / SOURCE_RECORD, {"transforms": str(transforms_file), "frames": dict(zip(cameras.names, paths))})
         counts[split] = len(cameras)
