@@ -117,6 +117,11 @@ def test_a_corrupt_environment_fails_naming_the_file_and_leaves_no_output(repo, 
     failed = snakemake(repo, copy, "results/captures/sphere/museum/test", check=False)
     assert failed.returncode != 0
     assert "museum.exr: not a readable OpenEXR file" in failed.stderr
+    # the run ends with what failed: the job, its log and the log's first error line
+    tail = "\n".join(failed.stderr.splitlines()[-8:])
+    assert "FreqBRDF: 1 job(s) failed:" in tail
+    assert "rule render_capture (results/captures/sphere/museum/test): log results/logs/render_capture/" in tail
+    assert "ERROR [freqbrdf.render_capture] render_capture failed: " in tail and "museum.exr" in tail
     capture_dir = copy / "results/captures/sphere/museum"
     assert not (capture_dir / "test").exists() and not (capture_dir / ".test.partial").exists()
 

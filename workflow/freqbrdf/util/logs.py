@@ -9,6 +9,7 @@ failure is explained both on the console and in the log.
 from __future__ import annotations
 
 import logging
+import re
 import resource
 import sys
 import time
@@ -72,3 +73,47 @@ def run_script(main: Callable[[Any, logging.Logger], None], smk: Any) -> None:
                 f.write(traceback.format_exc())
         raise
     log.info("done in %.1f s, peak memory %.0f MiB", time.perf_counter() - start, peak_memory_mb())
+
+
+_FAILED_JOB = re.compile(r"^Error in rule (\S+):\n((?:[ \t]+.*\n?)*)", re.M)
+
+
+def first_error_line(log_text: str) -> str:
+    """The line of a job's log that says what failed: the first ``ERROR`` line :func:`run_script`
+    writes, else the first line of an exception, else the last non-empty line; '' for an empty log."""
+    lines = [line.strip() for line in log_text.splitlines() if line.strip()]
+    for pattern in (r"\bERROR\b", r"^\w+(Error|Exception)\b"):
+        found = next((line for line in lines if re.search(pattern, line)), None)
+        if found:
+            return found
+    return lines[-1] if lines else ""
+
+
+def failure_summary(snakemake_log: str, workdir: str | Path = ".") -> list[str]:
+    """Lines naming each failed job of a run, its log file and the first error line in that log.
+
+    Parameters
+    ----------
+    snakemake_log : str
+        The text of Snakemake's own log of the run (``.snakemake/log/*.snakemake.log``), with its
+        ``Error in rule ...:`` blocks.
+    workdir : path-like
+        The run's working directory, against which the jobs' log paths are read.
+
+    Returns
+    -------
+    list of str
+        A heading and, per failed job, its rule and output, its log and that log's first error
+        line; empty when the log names no failed job.
+    """
+    lines = []
+    for match in _FAILED_JOB.finditer(snakemake_log):
+        fields = dict(re.findall(r"^\s+(\w[\w-]*): (.*)$", match.group(2), re.M))
+        output = fields.get("output", "").split(", ")[0]
+        log = fields.get("log", "").split(" (check log")[0].split(", ")[0]
+        text = ""
+        if log and (Path(workdir) / log).is_file():
+            text = first_error_line((Path(workdir) / log).read_text(errors="replace"))
+        lines += [f"  rule {match.group(1)}{f' ({output})' if output else ''}: log {log or 'none'}",
+                  f"    {text or 'the log says nothing; see the rule error above'}"]
+    return [f"FreqBRDF: {len(lines) // 2} job(s) failed:", *lines] if lines else []
