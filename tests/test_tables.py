@@ -667,13 +667,14 @@ def test_agreement_table_means_over_captures_beside_the_paper():
 
 RUN = {"seed": 3, "preset": {"name": "default", "smoke_test": False}, "mitsuba": {"epochs": 6, "spp": 8},
        "objects": ["sphere", "torus"], "real_captures": ["orb"], "capture_envs": ["studio"],
-       "envs": ["studio", "museum"], "render": {"train_views": 24, "test_views": 2, "resolution": 256, "spp": 64},
+       "envs": ["studio", "museum"], "env_kinds": {"studio": "studio", "museum": "museum"},
+       "render": {"train_views": 24, "test_views": 2, "resolution": 256, "spp": 64},
        "poses": "gt", "methods": ["freq", "freq_noshadow"], "relight_envs": "held_out"}
 
 
 def test_run_facts_state_the_configuration_with_display_names():
     facts = run_facts(RUN)
-    assert facts["Objects"].startswith("sphere, torus") and facts["Real captures"] == "orb"
+    assert facts["Objects"].startswith("sphere (a procedural shape), torus") and facts["Real captures"] == "orb"
     assert facts["Methods"] == "Ours (freq), Ours, no shadowing (freq_noshadow)"
     assert "24 training and 2 test views" in facts["Views"] and "256 x 256 pixels at 64" in facts["Views"]
     assert "held out" in facts["Relit under"] and facts["Seed"] == "3"
@@ -685,6 +686,25 @@ def test_run_facts_state_the_configuration_with_display_names():
     assert '<p class="warning"><b>A smoke test:</b>' in page
     listed = dict(RUN, relight_envs=["museum"], real_captures=[])
     assert run_facts(listed)["Relit under"].startswith("museum,") and run_facts(listed)["Real captures"] == "none"
+
+
+def test_run_facts_call_a_scan_a_scan_and_a_captured_map_captured():
+    """The landing page said "procedural objects" whatever the config (issue 48): the bunny under
+    captured light now reads as what it is, from the config's objects and environment kinds."""
+    run = dict(RUN, objects=["sphere", "bunny"], capture_envs=["sky", "studio"], envs=["sky", "studio", "outdoor"],
+               env_kinds={"sky": "hdri", "studio": "studio", "outdoor": "sunny"}, real_captures=[])
+    facts = run_facts(run)
+    assert facts["Objects"] == ("sphere (a procedural shape), bunny (a scan, atlased by xatlas), "
+                                "with seeded ground-truth SVBRDFs")
+    assert facts["Captured under"] == "sky (a captured map), studio (procedural)"
+    assert facts["Relit under"].endswith("of sky (a captured map), studio (procedural), outdoor (procedural sunny)")
+    assert facts["Sources"].startswith("bunny: the Stanford bunny") and "maps sky: Poly Haven" in facts["Sources"]
+    page = run_summary_html(facts, claims(full_run(), PAPER), headline_table(full_run()))
+    assert "bunny (a scan" in page and "sky (a captured map)" in page and "procedural objects" not in page
+    procedural = run_facts(RUN)  # no scan and no captured map: nothing to credit
+    assert "scan" not in procedural["Objects"] and "captured" not in procedural["Captured under"]
+    assert "Sources" not in procedural
+    assert run_facts(dict(RUN, objects=[], envs=[], env_kinds={}))["Captured under"] == "none"  # real captures only
 
 
 def test_headline_table_means_over_captures_in_registry_order():

@@ -41,8 +41,9 @@ def main(smk, log):
     claims = next(s for s in tables if s.key == "claims")
     write_text(smk.output.claims_html, html_page("FreqBRDF: the paper's claims, checked",
                                                  to_html(claims.table, None, claims.caption, verdicts="holds")))
-    write_text(smk.output.run_summary, run_summary_html(run_facts(smk.params.run), claims.table,
-                                                         headline_table(metrics, context.intervals)))
+    # what was run, from the run's config: env_kinds tells a captured map from procedural light
+    facts = run_facts(dict(smk.params.run, env_kinds=smk.params.env_kinds))
+    write_text(smk.output.run_summary, run_summary_html(facts, claims.table, headline_table(metrics, context.intervals)))
     verdicts = claims.table.holds.value_counts().to_dict()
     log.info("claims: %s", ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items())))
 

@@ -15,6 +15,8 @@ from freqbrdf.report.tables.display import method_label
 from freqbrdf.report.tables.paper import PaperResults
 from freqbrdf.report.tables.render import HTML_STYLE, scoped_style, to_html
 from freqbrdf.report.tables.tidy import mitsuba_convergence
+from freqbrdf.scene.hdri import CREDIT as HDRI_CREDIT
+from freqbrdf.scene.scans import SCANS
 from freqbrdf.report.tables.tables import (ablation_table, agreement_table, finetune_table, merge_table,
                                            parameter_table, relighting_table, uncertainty_table)
 
@@ -27,9 +29,12 @@ def run_facts(run: Mapping[str, object]) -> dict[str, str]:
     run : mapping
         From the run's configuration: ``seed``, ``preset`` (``name``, ``smoke_test``),
         ``mitsuba`` (``epochs``, ``spp``), ``objects``, ``real_captures``
-        (names), ``capture_envs``, ``envs``, ``relight_envs`` (config
-        ``evaluate.relight_envs``), ``render`` (``train_views``, ``test_views``,
-        ``resolution``, ``spp``), ``poses`` (config ``poses.source``) and ``methods``.
+        (names), ``capture_envs``, ``envs``, ``env_kinds`` (config ``envs.<name>.kind`` of
+        each of ``envs``), ``relight_envs`` (config ``evaluate.relight_envs``), ``render``
+        (``train_views``, ``test_views``, ``resolution``, ``spp``), ``poses`` (config
+        ``poses.source``) and ``methods``. Each object is called a scan or a procedural
+        shape (:data:`freqbrdf.scene.scans.SCANS`), each environment a captured map (kind
+        ``hdri``) or procedural light, and the scans' and maps' sources are credited.
 
     Returns
     -------
@@ -41,21 +46,45 @@ def run_facts(run: Mapping[str, object]) -> dict[str, str]:
         relit = "every environment a capture was not taken under (held out)"
     else:
         relit = "every environment" if relight == "all" else ", ".join(relight)
-    preset = run["preset"]
-    return {
+    preset, kinds = run["preset"], run["env_kinds"]
+    objects = ", ".join(map(object_label, run["objects"]))
+    facts = {
         "Preset": preset["name"] + (" (a smoke test: too few captures, views and steps for its verdicts to mean "
                                     "anything)" if preset["smoke_test"] else ""),
         "Mitsuba budget": mitsuba_budget(run["mitsuba"]),
-        "Objects": f"{', '.join(run['objects']) or 'none'} (synthetic, seeded ground truth)",
+        "Objects": f"{objects}, with seeded ground-truth SVBRDFs" if objects else "none",
         "Real captures": ", ".join(run["real_captures"]) or "none",
-        "Captured under": ", ".join(run["capture_envs"]),
-        "Relit under": f"{relit}, of {', '.join(run['envs'])}",
+        # no synthetic object, no synthetic capture: the capture environments went unused
+        "Captured under": ", ".join(light_label(env, kinds[env]) for env in run["capture_envs"] if objects) or "none",
+        "Relit under": f"{relit}, of {', '.join(light_label(env, kinds[env]) for env in run['envs'])}",
         "Views": (f"{render['train_views']} training and {render['test_views']} test views per capture, "
                   f"{render['resolution']} x {render['resolution']} pixels at {render['spp']} samples per pixel"),
         "Poses": str(run["poses"]),
         "Methods": ", ".join(f"{method_label(m)} ({m})" for m in run["methods"]),
         "Seed": str(run["seed"]),
     }
+    credits = [f"{name}: {SCANS[name].credit}" for name in run["objects"] if name in SCANS]
+    maps = [env for env in run["envs"] if kinds[env] == "hdri"]
+    if maps:
+        credits.append(f"maps {', '.join(maps)}: {HDRI_CREDIT}")
+    if credits:
+        facts["Sources"] = "; ".join(credits)
+    return facts
+
+
+def object_label(name: str) -> str:
+    """A synthetic object as the summary names it: ``bunny (a scan, atlased by xatlas)``,
+    ``sphere (a procedural shape)``."""
+    return f"{name} (a scan, atlased by xatlas)" if name in SCANS else f"{name} (a procedural shape)"
+
+
+def light_label(env: str, kind: str) -> str:
+    """An environment as the summary names it, from its config ``kind``: ``sky (a captured map)``
+    for ``hdri``, else ``studio (procedural)``, the kind named when it is not the name
+    (``outdoor (procedural sunny)``)."""
+    if kind == "hdri":
+        return f"{env} (a captured map)"
+    return f"{env} (procedural)" if kind == env else f"{env} (procedural {kind})"
 
 
 def mitsuba_budget(mitsuba: Mapping[str, object]) -> str:
