@@ -111,3 +111,49 @@ def test_progress_extrapolates_the_time_left():
 
     assert progress(3, 24, 2.1) == "3 of 24, 2.1 s elapsed, about 15 s left"  # 0.7 s each, 21 to go
     assert progress(24, 24, 16.8).endswith("about 0 s left")
+
+
+def test_a_second_writer_of_an_output_is_refused_until_the_first_dies(tmp_path):
+    """writer_lock: while one process writes an output another stops, naming it; a SIGKILLed
+    writer leaves the lock free (the kernel drops it), and a clean exit leaves no lock file."""
+    import subprocess
+    import sys
+    import time
+
+    from freqbrdf.util.io import WriterLockError, atomic_directory
+
+    out = tmp_path / "capture"
+    first = subprocess.Popen([sys.executable, "-c", "import sys, time; from freqbrdf.util.io import atomic_directory\n"
+                              f"with atomic_directory({str(out)!r}) as tmp:\n    print('in', flush=True); time.sleep(600)"],
+                             stdout=subprocess.PIPE, text=True)
+    try:
+        assert first.stdout.readline().strip() == "in"
+        with pytest.raises(WriterLockError, match=rf"capture: another process \(pid {first.pid}\) is writing it"):
+            with atomic_directory(out):
+                pass
+        assert (tmp_path / ".capture.partial").is_dir()  # the first writer's files are left alone
+    finally:
+        first.kill()
+        first.wait()
+    time.sleep(0.1)
+    with atomic_directory(out) as tmp:  # the dead writer's lock is gone; its partial directory is redone
+        assert not any(tmp.iterdir())
+        (tmp / "a.txt").write_text("a")
+    assert (out / "a.txt").read_text() == "a"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["capture"]
+
+
+def test_an_output_is_not_moved_into_place_while_its_manifest_is_incomplete(tmp_path):
+    """A capture whose cameras.json lists a view with no image fails before its rename."""
+    from freqbrdf.scene.cameras import check_capture_files
+    from freqbrdf.util.io import atomic_directory, write_json
+
+    frames = [{"name": n, "image": f"images/{n}.exr", "mask": f"masks/{n}.png"} for n in ("000", "001")]
+    with pytest.raises(ValueError, match=r"cameras.json lists 2 views, but 1 of their 4 images and masks are "
+                                         r"missing \(first: images/001.exr\)"):
+        with atomic_directory(tmp_path / "train", complete=check_capture_files) as tmp:
+            for name in ("images/000.exr", "masks/000.png", "masks/001.png"):
+                (tmp / name).parent.mkdir(exist_ok=True)
+                (tmp / name).write_bytes(b"x")
+            write_json(tmp / "cameras.json", {"frames": frames})
+    assert list(tmp_path.iterdir()) == []  # neither the output nor its partial directory

@@ -47,3 +47,31 @@ def test_the_first_error_line_falls_back_to_the_exception_then_the_last_line():
     assert first_error_line("a\nTraceback (most recent call last):\n  x\nKeyError: 'views'\nb\n") == "KeyError: 'views'"
     assert first_error_line("a\n\nlast words\n\n") == "last words"
     assert first_error_line("") == ""
+
+
+def test_a_job_dies_with_the_process_that_started_it(tmp_path):
+    """A parent starts a job that calls die_with_parent and sleeps; the parent is SIGKILLed alone
+    (as a killed Snakemake): the job must not live on as an orphan."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    job = "import time; from freqbrdf.util.logs import die_with_parent; die_with_parent(); time.sleep(600)"
+    parent = subprocess.Popen([sys.executable, "-c",
+                               f"import subprocess, sys, time; p = subprocess.Popen([sys.executable, '-c', {job!r}]); "
+                               "print(p.pid, flush=True); time.sleep(600)"], stdout=subprocess.PIPE, text=True)
+    child = int(parent.stdout.readline())
+    time.sleep(0.5)  # the job has made its request
+    os.kill(child, 0)  # alive while its parent is
+    parent.kill()
+    parent.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        try:
+            os.kill(child, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.05)
+    os.kill(child, 9)
+    raise AssertionError(f"job {child} outlived its killed parent")

@@ -1,7 +1,10 @@
 """End to end: the whole DAG on the tiny preset, caching, and failures that leave nothing behind."""
 
+import contextlib
 import json
+import os
 import re
+import signal
 import subprocess
 from pathlib import Path
 import sys
@@ -472,7 +475,6 @@ def _colour_count(image, rgb) -> int:
 
 
 def test_report_builds_and_a_headless_browser_shows_tables_and_figures(repo, run, tmp_path):
-    import os
 
     report = tmp_path / "report.html"
     snakemake(repo, run, "--report", str(report))
@@ -696,7 +698,6 @@ def test_a_capture_whose_mesh_has_no_uvs_and_whose_map_rings_imports_and_runs(re
 
 
 def test_a_changed_file_inside_a_capture_is_re_imported(repo, orb):
-    import os
 
     from freqbrdf.util.io import write_png
 
@@ -933,9 +934,6 @@ def test_a_second_run_in_the_same_directory_stops_in_one_line_and_leaves_the_fir
     """Snakemake 9.27.1 removes .snakemake/locks whenever a run exits (issue 32), so the workflow
     holds a lock of its own (freqbrdf.util.runlock) while it executes jobs: a second run with other
     targets, then a plain one, stop in one line naming the first, which completes untouched."""
-    import contextlib
-    import os
-    import signal
     import time
 
     from freqbrdf.util.runlock import LOCK_NAME, read_holder
@@ -989,7 +987,6 @@ def test_a_second_run_in_the_same_directory_stops_in_one_line_and_leaves_the_fir
 def test_the_run_lock_dies_with_its_process_even_killed(tmp_path):
     """freqbrdf.util.runlock: a second process is refused while the first holds the lock, and takes
     it once the first is SIGKILLed (flock locks die with their process: no --unlock)."""
-    import signal
     import time
 
     from freqbrdf.util.runlock import LOCK_NAME, read_holder
@@ -1013,3 +1010,67 @@ def test_the_run_lock_dies_with_its_process_even_killed(tmp_path):
     taken = subprocess.run(holder("import os", "print(os.getpid())"), capture_output=True, text=True, timeout=60)
     assert taken.returncode == 0, taken.stderr
     assert read_holder(tmp_path / LOCK_NAME)["pid"] == int(taken.stdout)  # its record replaced the killed one's
+
+
+def _job_pids(workdir, rule: str) -> list[int]:
+    """Pids of the running jobs of ``rule`` in ``workdir`` (their script's name and working directory)."""
+    pids = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and f".{rule}" in (proc / "cmdline").read_bytes().decode(errors="replace") \
+                    and Path(os.readlink(proc / "cwd")) == workdir.resolve():
+                pids.append(int(proc.name))
+        except OSError:
+            continue
+    return pids
+
+
+def test_killing_snakemake_alone_mid_job_leaves_no_orphan_and_the_rerun_completes_the_output(repo, run, tmp_path):
+    """Snakemake SIGKILLed alone while its render_capture job writes: the job dies with it
+    (freqbrdf.util.logs.die_with_parent), a rerun started at once writes the complete capture,
+    the same images as the undisturbed run's, and no output was ever marked done half-written."""
+    import time
+
+    workdir = tmp_path / "run"
+    target = "results/captures/sphere/studio/train"
+    command = [sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"), "-d", str(workdir),
+               "--cores", "2", target, "--configfile", str(repo / "config" / "tiny.yaml")]
+    with open(tmp_path / "first.log", "w") as log:
+        first = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    render_log = workdir / "results/logs/render_capture/sphere_studio_train.log"
+    try:
+        deadline = time.monotonic() + 300
+        while not (render_log.is_file() and "view " in render_log.read_text()):
+            assert first.poll() is None and time.monotonic() < deadline, (tmp_path / "first.log").read_text()[-4000:]
+            time.sleep(0.05)
+        jobs = _job_pids(workdir, "render_capture")
+        assert jobs, "the render job was not found running"
+        os.kill(first.pid, signal.SIGKILL)  # Snakemake alone, not its process group
+        first.wait()
+        deadline = time.monotonic() + 10
+        while any(_alive(pid) for pid in jobs):
+            assert time.monotonic() < deadline, f"render job(s) {jobs} outlived the killed Snakemake"
+            time.sleep(0.05)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(first.pid, signal.SIGKILL)
+    assert not (workdir / target).exists()  # never marked done half-written
+    snakemake(repo, workdir, target)
+    capture, reference = workdir / target, run / target
+    cameras = cameras_from_json(read_json(capture / "cameras.json"))
+    assert sorted(p.stem for p in (capture / "images").iterdir()) == sorted(cameras.names)
+    for name in cameras.names:
+        np.testing.assert_array_equal(read_exr(capture / "images" / f"{name}.exr"),
+                                      read_exr(reference / "images" / f"{name}.exr"))
+    assert "Nothing to be done" in snakemake(repo, workdir, target, "-n").stdout
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # a zombie (dead, not yet reaped by its new parent) counts as gone
+    with contextlib.suppress(OSError):
+        return open(f"/proc/{pid}/stat").read().split(") ")[1][0] != "Z"
+    return False

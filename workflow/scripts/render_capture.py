@@ -4,7 +4,7 @@ import time
 
 import numpy as np
 
-from freqbrdf.scene.cameras import cameras_to_json, mitsuba_to_world, rig_cameras
+from freqbrdf.scene.cameras import cameras_to_json, check_capture_files, mitsuba_to_world, rig_cameras
 from freqbrdf.artefacts import read_svbrdf
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.util.io import atomic_directory, read_exr, write_exr, write_json, write_png
@@ -22,7 +22,7 @@ def main(smk, log):
     to_world = np.stack([mitsuba_to_world(m) for m in cameras.world_to_camera])
     frame = dict(width=size, height=size, fov_x_deg=p.render["fov_deg"])
 
-    with atomic_directory(smk.output[0]) as tmp:
+    with atomic_directory(smk.output[0], complete=check_capture_files) as tmp:
         _render_into(mi, smk, log, cameras, to_world, frame, tmp)
 
 

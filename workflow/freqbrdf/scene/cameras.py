@@ -16,6 +16,8 @@ Conventions (shared by every stage):
 
 from __future__ import annotations
 
+import json
+
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -259,3 +261,25 @@ def cameras_from_json(data: dict, source: str | Path = "cameras.json") -> Camera
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{source}: malformed cameras ({exc!r})") from None
+
+
+def check_capture_files(directory: str | Path) -> None:
+    """Check that a capture directory holds every image and mask its ``cameras.json`` lists.
+
+    Run before a capture is moved into place, so a capture whose writing was cut short (or
+    shared with another writer) can never look complete.
+
+    Raises
+    ------
+    ValueError
+        Naming the directory, how many files it lacks and the first of them.
+    """
+    directory = Path(directory)
+    with open(directory / "cameras.json") as f:
+        frames = json.load(f).get("frames", [])
+    listed = [directory / f[key] for f in frames for key in ("image", "mask")]
+    missing = [p for p in listed if not p.is_file()]
+    if missing or not frames:
+        first = missing[0].relative_to(directory) if missing else "any frame"
+        raise ValueError(f"{directory}: cameras.json lists {len(frames)} views, but {len(missing)} of their "
+                         f"{len(listed)} images and masks are missing (first: {first})")

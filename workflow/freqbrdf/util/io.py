@@ -11,7 +11,7 @@ import contextlib
 import json
 import os
 import secrets
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -43,25 +43,75 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         tmp_path.unlink(missing_ok=True)
 
 
+class WriterLockError(RuntimeError):
+    """Another live process is writing the same output."""
+
+
 @contextlib.contextmanager
-def atomic_directory(path: str | os.PathLike) -> Iterator[Path]:
+def writer_lock(path: str | os.PathLike) -> Iterator[None]:
+    """Hold an exclusive lock on writing ``path`` (a hidden ``.{name}.lock`` beside it, with the pid).
+
+    Two writers of one output (a job orphaned by a killed Snakemake and its rerun) would mix
+    their files; the second stops instead. The kernel releases the lock when its process
+    dies, however it dies, so a dead writer never blocks a rerun; the file is removed on release.
+
+    Raises
+    ------
+    WriterLockError
+        Naming the output and the pid that holds it.
+    """
+    import fcntl
+
+    lock = Path(path).with_name(f".{Path(path).name}.lock")
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            raise WriterLockError(f"{path}: another process (pid {holder}) is writing it; wait for that job to end "
+                                  "or stop it, then rerun") from None
+        try:  # the lock file may have been removed and remade by its last holder: lock the current one
+            if os.stat(lock).st_ino == os.fstat(fd).st_ino:
+                break
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, str(os.getpid()).encode())
+        yield
+    finally:
+        lock.unlink(missing_ok=True)  # before the release, so that no one locks a file that is gone
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def atomic_directory(path: str | os.PathLike, complete: Callable[[Path], None] | None = None) -> Iterator[Path]:
     """Yield an empty sibling directory of ``path`` that replaces ``path`` on success.
 
     Whatever was being written is removed on an exception, so an interrupted
-    job never leaves a directory that looks complete.
+    job never leaves a directory that looks complete. One writer at a time
+    (:func:`writer_lock`); ``complete(directory)``, when given, checks the written
+    directory against its own manifest and raises before anything is renamed into place.
     """
     import shutil
 
     path = Path(path)
     tmp = path.with_name(f".{path.name}.partial")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    try:
-        yield tmp
-        shutil.rmtree(path, ignore_errors=True)
-        tmp.rename(path)
-    finally:
+    with writer_lock(path):
         shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        try:
+            yield tmp
+            if complete is not None:
+                complete(tmp)
+            shutil.rmtree(path, ignore_errors=True)
+            tmp.rename(path)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def write_exr(path: str | os.PathLike, image: np.ndarray) -> None:

@@ -48,6 +48,27 @@ def peak_memory_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def die_with_parent() -> None:
+    """Have the kernel end this process (SIGTERM) when its parent, the Snakemake that started the
+    job, dies (Linux ``PR_SET_PDEATHSIG``; elsewhere nothing).
+
+    A Snakemake killed alone would otherwise leave its jobs writing as orphans, and a rerun
+    could mark their half-written outputs done. Called first by :func:`run_script`.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+    import os
+    import signal
+
+    parent = os.getppid()
+    pr_set_pdeathsig = 1
+    if ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGTERM), 0, 0, 0) != 0:
+        return  # not allowed here (a seccomp sandbox): the writer lock still stops a second writer
+    if os.getppid() != parent:  # the parent died before the request took effect
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
 def run_script(main: Callable[[Any, logging.Logger], None], smk: Any) -> None:
     """Run a rule's ``main(snakemake, log)`` with logging, timing and a one-line error.
 
@@ -58,6 +79,7 @@ def run_script(main: Callable[[Any, logging.Logger], None], smk: Any) -> None:
     smk : snakemake.script.Snakemake
         The ``snakemake`` object Snakemake injects into ``script:`` files.
     """
+    die_with_parent()
     log_file = smk.log[0] if len(smk.log) else None
     wildcards = ", ".join(f"{k}={v}" for k, v in smk.wildcards.items())
     log = script_logger(smk.rule, log_file)
