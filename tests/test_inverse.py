@@ -210,6 +210,8 @@ def test_image_loss_and_total_variation_match_their_formulas(mi):
          r"tv_weight\.roughness must be a finite number >= 0, got -1"),
         ({"lr": {"base_color": 0.0, "roughness": 0.0, "metallic": 0.0}}, r"lr: at least one texture's value must be > 0"),
         ({"lr": "fast"}, r"lr must be a finite number > 0 or a mapping of .*, got str 'fast'"),
+        ({"stop_window": -1}, r"stop_window must be >= 0, got -1"),
+        ({"stop_fall": 1.0}, r"stop_fall must be in \[0, 1\), got 1.0"),
     ],
 )
 def test_bad_settings_give_one_line_naming_the_field(settings, message):
@@ -439,3 +441,26 @@ def test_a_runs_settings_come_from_the_config_with_finetune_overriding_and_a_see
     assert len(seeds) == 16
     assert run_settings(config, "sphere", "studio", "gt", "mitsuba") == base
     InverseSettings(**base), InverseSettings(**tuned)
+
+
+def test_the_loss_levels_off_when_a_window_falls_by_less_than_its_share():
+    """stop_epoch on a loss that halves each epoch to a floor: windows of 2 epochs compared."""
+    loss = np.array([8.0, 4.0, 2.0, 1.0, 1.0, 1.0, 1.0, 1.0])
+    # epoch 4: (8 + 4) / 2 = 6 -> (2 + 1) / 2 = 1.5, a 75% fall; epoch 6: 1.5 -> 1.0 (33%);
+    # epoch 7: (1 + 1) / 2 -> 1: 0%
+    assert inv.stop_epoch(loss, 2, 0.01) == 7
+    assert inv.stop_epoch(loss, 2, 0.5) == 6
+    assert inv.stop_epoch(loss, 1, 0.01) == 5  # 1.0 -> 1.0
+    assert inv.stop_epoch(loss[:6], 2, 0.01) is None  # still falling by its own measure
+    assert inv.stop_epoch(np.array([1.0, 1.2, 1.0]), 1, 0.0) == 2  # a rise is no fall
+
+
+def test_a_run_stops_when_its_training_loss_levels_off_and_else_runs_every_epoch(mi, capture):
+    start = inv.constant_textures(TEXELS)
+    full, _ = run(mi, capture, start, views=(0, 3), epochs=6, spp=8, lr=0.05, seed=7)
+    stopped, reports = run(mi, capture, start, views=(0, 3), epochs=6, spp=8, lr=0.05, seed=7, stop_window=1,
+                           stop_fall=0.99)
+    # with a fall of 99% demanded, the loss "levels off" at the first comparison: after epoch 2
+    assert len(stopped.epoch_loss) == 2 and [r.epoch for r in reports] == [1, 2]
+    assert len(full.epoch_loss) == 6  # stop_window 0: every epoch
+    np.testing.assert_allclose(stopped.epoch_loss, full.epoch_loss[:2], rtol=1e-5)  # the same run, cut short

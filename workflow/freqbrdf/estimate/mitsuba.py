@@ -59,7 +59,8 @@ from types import ModuleType
 
 import numpy as np
 
-from freqbrdf.estimate.mitsuba_settings import LOSSES, LR_DECAYS, InverseSettings, lr_factor, render_seeds, view_order
+from freqbrdf.estimate.mitsuba_settings import (LOSSES, LR_DECAYS, InverseSettings, lr_factor, render_seeds,
+                                              stop_epoch, view_order)
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.scene.cameras import Cameras, mitsuba_to_world
 from freqbrdf.scene.render import capture_scene, principled_bsdf
@@ -71,7 +72,8 @@ _CHANNELS = {"base_color": 3, "roughness": 1, "metallic": 1}
 
 __all__ = ["LOSSES", "LR_DECAYS", "EpochReport", "InverseResult", "InverseSettings", "check_textures",
            "constant_textures", "image_loss", "inverse_scene", "lr_factor", "optimise_textures", "render_seeds",
-           "sensor_intrinsics", "sensor_views", "step_table", "texture_regulariser", "total_variation", "view_order"]
+           "sensor_intrinsics", "sensor_views", "step_table", "stop_epoch", "texture_regulariser", "total_variation",
+           "view_order"]
 
 
 @dataclass(frozen=True)
@@ -554,6 +556,8 @@ def optimise_textures(
                 trace.evaluations.append({"epoch": epoch + 1, "elapsed_s": elapsed, **evaluate(_textures(opt))})
             if progress is not None:
                 progress(EpochReport(epoch + 1, settings.epochs, trace.epoch_loss[-1], elapsed, _resident_mb()))
+        if settings.stop_window and stop_epoch(trace.epoch_loss, settings.stop_window, settings.stop_fall):
+            break  # the training loss has levelled off: converged by its own measure, no ground truth
 
     params.update(opt)
     return InverseResult(textures=_textures(params), loss=np.asarray(trace.loss), views=tuple(trace.views),

@@ -94,6 +94,12 @@ class InverseSettings:
     lr_decay : {"none", "cosine"}
         ``cosine`` multiplies the learning rate by ``0.5 (1 + cos(pi t))``,
         ``t`` the fraction of the run's steps done (:func:`lr_factor`).
+    stop_window : int
+        Stop before ``epochs`` once the training loss has levelled off (:func:`stop_epoch`, no
+        ground truth): the mean loss of the last ``stop_window`` epochs fell by less than
+        ``stop_fall`` from that of the ``stop_window`` before. 0: run every epoch.
+    stop_fall : float
+        That relative fall, in [0, 1).
     """
 
     epochs: int = 10
@@ -106,6 +112,8 @@ class InverseSettings:
     views_per_step: int = 1
     loss_eps: float = 0.01
     lr_decay: str = "none"
+    stop_window: int = 0
+    stop_fall: float = 0.01
 
     def __post_init__(self) -> None:
         check_int(self.epochs, "epochs", 1)
@@ -120,6 +128,9 @@ class InverseSettings:
         object.__setattr__(self, "tv_weight", _per_texture(self.tv_weight, "tv_weight", positive=False))
         _number(self.loss_eps, "loss_eps", positive=True)
         check_choice(self.lr_decay, "lr_decay", LR_DECAYS)
+        check_int(self.stop_window, "stop_window", 0)
+        if not 0.0 <= _number(self.stop_fall, "stop_fall", positive=False) < 1.0:
+            raise ValueError(f"stop_fall must be in [0, 1), got {self.stop_fall!r}")
 
     def steps_per_epoch(self, n_views: int) -> int:
         """Adam steps of one epoch over ``n_views`` views: ceil(n_views / views_per_step)."""
@@ -164,6 +175,37 @@ def lr_factor(decay: str, step: int, steps: int) -> float:
     if decay == "none":
         return 1.0
     return 0.5 * (1.0 + math.cos(math.pi * step / steps))
+
+
+def stop_epoch(epoch_loss: np.ndarray, window: int, fall: float) -> int | None:
+    """The first epoch after which the training loss counts as levelled off, or None.
+
+    After epoch ``e`` (1-based, ``e >= 2 window``) the mean loss of epochs ``e - window + 1 .. e``
+    is compared with that of the ``window`` epochs before: levelled off when it fell by less
+    than ``fall`` of the earlier mean. Over whole epochs, so every view weighs the same; over
+    windows, because one epoch's loss at a few samples per pixel is noisy.
+
+    Parameters
+    ----------
+    epoch_loss : ndarray, shape (E,)
+        Mean training loss of each epoch done.
+    window : int
+        Epochs per window, >= 1.
+    fall : float
+        Relative fall below which the loss has levelled off.
+
+    Returns
+    -------
+    int or None
+        The epoch (1-based), or None if the loss is still falling at every epoch so far.
+    """
+    loss = np.asarray(epoch_loss, dtype=np.float64)
+    check_int(window, "stop_window", 1)
+    for e in range(2 * window, len(loss) + 1):
+        before, last = loss[e - 2 * window:e - window].mean(), loss[e - window:e].mean()
+        if before - last < fall * before:
+            return e
+    return None
 
 
 def render_seeds(seed: int, render: int) -> tuple[int, int]:
