@@ -5,8 +5,9 @@ Reads long runs of rule ``mitsuba`` on the tuning captures (config/tuning.yaml w
 per-epoch parameter MSE (``mse_curve.tsv``, evaluation only) and training loss (``loss.tsv``):
 
 - the MSE and time after each budget, relative to the reference's final MSE;
-- the doubling budget: the fewest epochs ``k`` after which doubling the run lowers the MSE
-  by less than ``--doubling`` (5%): the project's definition of a converged budget;
+- the doubling budget (issue 48's definition of a converged budget): the fewest epochs ``k``
+  from which on doubling the run lowers the MSE by less than ``--doubling`` (5%), for every
+  longer budget the run can double too;
 - for each stopping rule of the training loss (`freqbrdf.estimate.mitsuba_settings.stop_epoch`,
   windows x falls, no ground truth): the epoch it stops at, its time and MSE over the reference's.
 
@@ -50,14 +51,31 @@ def read_run(estimate: Path) -> tuple[pd.DataFrame, np.ndarray]:
 
 
 def doubling_budget(mse: pd.Series, tolerance: float) -> int | None:
-    """The fewest epochs k (k >= 1, 2k within the run) with (mse[k] - mse[2k]) / mse[k] < tolerance."""
-    for k in range(1, int(mse.index.max()) // 2 + 1):
-        if (mse[k] - mse[2 * k]) < tolerance * mse[k]:
-            return k
-    return None
+    """The fewest epochs k from which on, for every k' >= k with 2k' within the run, doubling the
+    run lowers the MSE by less than ``tolerance``: (mse[k'] - mse[2k']) < tolerance mse[k'].
+
+    Parameters
+    ----------
+    mse : Series
+        Parameter MSE indexed by epoch (0, 1, ..., E).
+    tolerance : float
+
+    Returns
+    -------
+    int or None
+        None when even k = E // 2 fails (the run is too short to show it).
+    """
+    longest = int(mse.index.max()) // 2
+    budget = None
+    for k in range(longest, 0, -1):  # from the longest down: an early plateau that falls again does not count
+        if mse[k] - mse[2 * k] >= tolerance * mse[k]:
+            break
+        budget = k
+    return budget
 
 
 def budget_rows(capture: str, curve: pd.DataFrame) -> list[dict]:
+    """One row per budget of :data:`BUDGETS` within the run: its time, MSE and MSE over the reference's."""
     reference = float(curve.mse_average.iloc[-1])
     return [{"capture": capture, "epochs": k, "elapsed_s": float(curve.elapsed_s[k]),
              "mse": float(curve.mse_average[k]), "over_reference": float(curve.mse_average[k]) / reference - 1.0}
@@ -65,6 +83,8 @@ def budget_rows(capture: str, curve: pd.DataFrame) -> list[dict]:
 
 
 def rule_rows(capture: str, curve: pd.DataFrame, epoch_loss: np.ndarray, cap: int) -> list[dict]:
+    """One row per stopping rule (:data:`WINDOWS` x :data:`FALLS`): the epoch it stops at (the cap
+    when it never does), its time, MSE and MSE over the reference's."""
     reference = float(curve.mse_average.iloc[-1])
     rows = []
     for window, fall in itertools.product(WINDOWS, FALLS):
@@ -84,6 +104,10 @@ def main() -> None:
     parser.add_argument("--cap", type=int, default=96, help="the stopping rules' cap in epochs")
     parser.add_argument("--out", type=Path, default=REPO / "bench" / "out")
     args = parser.parse_args()
+    run = yaml.safe_load(layout.located(layout.RUN_CONFIG, args.results).read_text())["mitsuba"]
+    if run["lr_decay"] != "none" or run["stop_window"]:
+        raise SystemExit(f"{args.results}: mitsuba.lr_decay {run['lr_decay']!r}, stop_window {run['stop_window']}: "
+                         "a budget is a prefix of the run only at a constant rate, run to its end")
     default = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
     bench = yaml.safe_load((REPO / "config" / "benchmark.yaml").read_text())
     reported = {(o, e) for c in (default, bench) for o in c["objects"] for e in c["capture_envs"]}
@@ -108,7 +132,7 @@ def main() -> None:
     print("MSE after each budget over the reference's (its last epoch), and the time:")
     print(budgets.pivot(index="epochs", columns="capture", values="over_reference").to_string(float_format="{:+.1%}".format))
     print(budgets.pivot(index="epochs", columns="capture", values="elapsed_s").to_string(float_format="{:.0f} s".format))
-    print(f"\nfewest epochs after which doubling lowers the MSE by less than {args.doubling:.0%}:",
+    print(f"\nfewest epochs from which on doubling lowers the MSE by less than {args.doubling:.0%}:",
           ", ".join(f"{c} {k}" for c, k in doubling.items()))
     worst = rules.groupby(["window", "fall"]).agg(worst_over=("over_reference", "max"), mean_s=("elapsed_s", "mean"),
                                                   mean_epochs=("stop_epoch", "mean"))

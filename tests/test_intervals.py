@@ -10,7 +10,7 @@ def test_the_mean_weighs_captures_not_units():
     # capture a: ten views at 1; capture b: one at 3: the mean over captures is 2, not 13/11
     interval = mean_interval([1.0] * 10 + [3.0], ["a"] * 10 + ["b"], IntervalSettings())
     assert interval.value == pytest.approx(2.0)
-    assert interval.captures == 2 and interval.units == 11
+    assert interval.clusters == 2 and interval.units == 11
     # Student's t with one degree of freedom over the means 1 and 3: 2 +- 12.706 * sqrt(2) / sqrt(2)
     assert (interval.low, interval.high) == pytest.approx((2.0 - 12.7062047, 2.0 + 12.7062047))
 

@@ -320,8 +320,9 @@ def test_every_claim_on_mitsuba_is_judged_on_its_converged_captures_with_all_bes
     table = claims(df, PAPER, ClaimContext(mitsuba_budget="6 epochs x 8 spp"))
     result, ours = dict(zip(table.claim, table.holds)), dict(zip(table.claim, table.ours))
     for claim in MITSUBA_CLAIMS:
+        unit = "objects" if claim.startswith("Merging") else "captures"  # a merge is one per object
         assert result[claim] == "yes", claim
-        assert ours[claim].startswith("on the 3 of 4 captures where Mitsuba converged, budget 6 epochs x 8 spp: ")
+        assert ours[claim].startswith(f"on the 3 of 4 {unit} where Mitsuba converged, budget 6 epochs x 8 spp: ")
         assert "; on all 4: " in ours[claim]
     # the merge of Mitsuba's captures leaves out an object with any unconverged capture
     assert "Merging" in MITSUBA_CLAIMS[-1] and "MSE 0.035 [0.035, 0.035]" in ours[MITSUBA_CLAIMS[-1]]
@@ -335,8 +336,9 @@ def test_fewer_than_half_converged_leaves_every_claim_on_mitsuba_not_judged():
     table = claims(df, PAPER, ClaimContext(mitsuba_budget="6 epochs x 8 spp"))
     result, ours = dict(zip(table.claim, table.holds)), dict(zip(table.claim, table.ours))
     for claim in MITSUBA_CLAIMS:
+        unit = "objects" if claim.startswith("Merging") else "captures"
         assert result[claim] == "not judged"
-        assert ours[claim].startswith("not judged: Mitsuba converged on 1 of 4 captures, fewer than half, "
+        assert ours[claim].startswith(f"not judged: Mitsuba converged on 1 of 4 {unit}, fewer than half, "
                                       "budget 6 epochs x 8 spp; ")
     assert {c for c, v in result.items() if v != "yes"} == set(MITSUBA_CLAIMS)
     # and the tables label the baseline's rows with its budget
@@ -347,6 +349,22 @@ def test_fewer_than_half_converged_leaves_every_claim_on_mitsuba_not_judged():
     labels = set(parameters.Method[parameters.source == "here"])
     assert "Mitsuba (mitsuba), 6 epochs x 8 spp, not converged on 3 of 4 captures" in labels
     assert "Mitsuba (mitsuba)" in set(parameters.Method[parameters.source == "paper"])
+
+
+def test_a_merge_counts_the_objects_whose_captures_all_converged():
+    """Two objects x two captures, one unconverged capture each (the default run's layout): the
+    comparisons are judged on the 2 converged captures, the merge of Mitsuba's captures on no
+    object, so it is not judged (not 'not run': it ran)."""
+    df = pd.concat([full_run(), full_run().assign(env="sunny")])
+    df = df[~((df.env == "sunny") & df.method.isin(["mitsuba_merged"]))]  # one merge per object, filed once
+    df.loc[(df.env == "sunny") & (df.metric == "mitsuba_converged"), "value"] = 0.0
+    table = claims(df, PAPER)
+    result, ours = dict(zip(table.claim, table.holds)), dict(zip(table.claim, table.ours))
+    assert result["Parameter accuracy comparable to Mitsuba"] == "yes"
+    assert ours["Parameter accuracy comparable to Mitsuba"].startswith("on the 2 of 4 captures where Mitsuba converged")
+    merge = "Merging captures by entropy beats their average"
+    assert result[merge] == "not judged"
+    assert ours[merge].startswith("not judged: Mitsuba converged on 0 of 2 objects, fewer than half; ")
 
 
 def test_speed_is_freqs_own_ratio_with_the_fastest_of_the_family_named_beside():

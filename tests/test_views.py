@@ -15,7 +15,8 @@ def test_subsets_are_seeded_sorted_distinct_and_capped():
     assert [len(v) for v in subsets.values()] == [3, 3, 1]  # every view is one subset
     assert all(len(v) == c and (np.diff(v) > 0).all() for c, draws in subsets.items() for v in draws)
     np.testing.assert_array_equal(subsets[24][0], np.arange(24))
-    assert not np.array_equal(subsets[6][0], subsets[6][1])  # several draws, not one repeated
+    assert len({tuple(v) for v in subsets[6]}) == 3  # distinct draws
+    assert len(view_subsets(4, [2], seed=0, subsets=10)[2]) == 6  # as many as there are: 4 choose 2
     np.testing.assert_array_equal(view_subsets(24, [6], seed=3)[6][0], subsets[6][0])  # the seed decides
     assert not np.array_equal(view_subsets(24, [6], seed=4)[6][0], subsets[6][0])
     with pytest.raises(ValueError, match="views count must be >= 1, got 0"):

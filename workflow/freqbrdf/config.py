@@ -242,7 +242,7 @@ def derived_seed(seed: int, *names: str) -> int:
 # The configuration the rules' measured resources refer to (config/config.yaml as shipped):
 # `size_factor` scales them to another configuration's work.
 REFERENCE_SIZE = {("render", "resolution"): 256, ("render", "spp"): 64, ("render", "train_views"): 24,
-                  ("textures", "resolution"): 256, ("mitsuba", "spp"): 8, ("mitsuba", "epochs"): 6,
+                  ("textures", "resolution"): 256, ("mitsuba", "spp"): 8, ("mitsuba", "epochs"): 48,
                   ("entropy_agreement", "texels"): 256, ("entropy_agreement", "spp"): 8,
                   ("entropy_agreement", "grid"): 8}
 SIZE_KINDS = ("fixed", "pixels", "samples", "texels", "inverse", "agreement")

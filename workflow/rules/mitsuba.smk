@@ -28,7 +28,7 @@ rule mitsuba:
     threads: 2
     resources:
         mem_mb=memory(500, "pixels"),
-        runtime=minutes(6, "inverse"),
+        runtime=minutes(12, "inverse"),
         gpu=MITSUBA_GPUS,
     params:
         variant=config["mitsuba"]["variant"],

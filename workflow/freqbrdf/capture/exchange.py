@@ -321,7 +321,7 @@ def find_mesh(source: Path) -> Path:
 def _frame_paths(source: Path, split: str) -> tuple[Path, dict, list[str]]:
     """The transforms file of a split, its contents and its frames' ``file_path``, every frame's
     files checked to lie inside ``source`` (:func:`inside`)."""
-    transforms_file = source / f"transforms_{split}.json"
+    transforms_file = inside(source, source / f"transforms_{split}.json", f"transforms_{split}.json")
     transforms = read_json(transforms_file)
     paths = [str(f.get("file_path", "")) for f in transforms.get("frames", [])] if isinstance(transforms, dict) else []
     if not paths:

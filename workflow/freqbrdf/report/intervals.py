@@ -68,19 +68,19 @@ class Interval:
         The statistic on the data (each cluster weighing the same).
     low, high : float
         The interval's ends; NaN when one cluster gives none.
-    captures, units : int
+    clusters, units : int
         How many clusters (captures, or objects for a merge) and units it rests on.
     """
 
     value: float
     low: float
     high: float
-    captures: int = 1
+    clusters: int = 1
     units: int = 1
 
     def map(self, f) -> Interval:
         """The interval of a monotonically increasing function of the statistic (e.g. ``np.exp``)."""
-        return Interval(float(f(self.value)), float(f(self.low)), float(f(self.high)), self.captures, self.units)
+        return Interval(float(f(self.value)), float(f(self.low)), float(f(self.high)), self.clusters, self.units)
 
 
 def cluster_means(values: Sequence[float], groups: Sequence[Hashable]) -> np.ndarray:

@@ -11,6 +11,7 @@ through the same SH fit, spectrum search and ``freq`` estimator as the pipeline.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -39,7 +40,7 @@ def view_subsets(n_views: int, counts: Sequence[int], seed: int, subsets: int = 
         Views kept; counts at or above ``n_views`` all mean every view, keyed ``n_views``.
     seed : int
     subsets : int
-        Subsets drawn per count below ``n_views`` (every view is one subset).
+        Distinct subsets drawn per count (fewer where there are fewer: every view is one subset).
 
     Returns
     -------
@@ -56,8 +57,12 @@ def view_subsets(n_views: int, counts: Sequence[int], seed: int, subsets: int = 
     rng = np.random.default_rng(seed)
     out = {}
     for count in sorted({min(check_int(c, "views count", 1), n_views) for c in counts}):
-        out[count] = ([np.arange(n_views)] if count == n_views else
-                      [np.sort(rng.choice(n_views, count, replace=False)) for _ in range(subsets)])
+        drawn: dict[tuple[int, ...], np.ndarray] = {}
+        # distinct subsets, as many as there are (2 of 4 views: 6)
+        while len(drawn) < min(subsets, math.comb(n_views, count)):
+            views = np.sort(rng.choice(n_views, count, replace=False))
+            drawn.setdefault(tuple(views.tolist()), views)
+        out[count] = list(drawn.values())
     return out
 
 

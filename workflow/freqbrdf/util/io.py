@@ -49,18 +49,23 @@ class WriterLockError(RuntimeError):
 
 @contextlib.contextmanager
 def writer_lock(path: str | os.PathLike) -> Iterator[None]:
-    """Hold an exclusive lock on writing ``path`` (a hidden ``.{name}.lock`` beside it, with the pid).
+    """Hold an exclusive lock on writing ``path`` (a hidden ``.{name}.lock`` beside it, naming the holder).
 
     Two writers of one output (a job orphaned by a killed Snakemake and its rerun) would mix
     their files; the second stops instead. The kernel releases the lock when its process
     dies, however it dies, so a dead writer never blocks a rerun; the file is removed on release.
+    On a file system without ``flock`` (NFS mounted ``nolock``) it warns and writes unguarded,
+    as the run lock does.
 
     Raises
     ------
     WriterLockError
-        Naming the output and the pid that holds it.
+        Naming the output and the host and pid that hold it.
     """
+    import errno
     import fcntl
+    import socket
+    import sys
 
     lock = Path(path).with_name(f".{Path(path).name}.lock")
     lock.parent.mkdir(parents=True, exist_ok=True)
@@ -68,20 +73,29 @@ def writer_lock(path: str | os.PathLike) -> Iterator[None]:
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.read(fd, 32).decode(errors="replace").strip() or "unknown"
+        except OSError as error:
+            holder = os.read(fd, 256).decode(errors="replace").strip() or "unknown"
             os.close(fd)
-            raise WriterLockError(f"{path}: another process (pid {holder}) is writing it; wait for that job to end "
-                                  "or stop it, then rerun") from None
+            if error.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise WriterLockError(f"{path}: another process ({holder}) is writing it; wait for that job to "
+                                      "end or stop it, then rerun") from None
+            print(f"Warning: {lock}: no flock on this file system ({error.strerror}); nothing stops a second "
+                  "writer of this output", file=sys.stderr)
+            fd = None
+            break
         try:  # the lock file may have been removed and remade by its last holder: lock the current one
             if os.stat(lock).st_ino == os.fstat(fd).st_ino:
                 break
         except FileNotFoundError:
             pass
         os.close(fd)
+    if fd is None:
+        lock.unlink(missing_ok=True)
+        yield
+        return
     try:
         os.ftruncate(fd, 0)
-        os.write(fd, str(os.getpid()).encode())
+        os.write(fd, f"pid {os.getpid()} on {socket.gethostname()}".encode())
         yield
     finally:
         lock.unlink(missing_ok=True)  # before the release, so that no one locks a file that is gone

@@ -53,7 +53,8 @@ def die_with_parent() -> None:
     job, dies (Linux ``PR_SET_PDEATHSIG``; elsewhere nothing).
 
     A Snakemake killed alone would otherwise leave its jobs writing as orphans, and a rerun
-    could mark their half-written outputs done. Called first by :func:`run_script`.
+    could mark their half-written outputs done. :func:`run_script` calls it before the job's
+    ``main``; a job whose Snakemake died while the script was importing ends then.
     """
     if not sys.platform.startswith("linux"):
         return
@@ -65,7 +66,9 @@ def die_with_parent() -> None:
     pr_set_pdeathsig = 1
     if ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGTERM), 0, 0, 0) != 0:
         return  # not allowed here (a seccomp sandbox): the writer lock still stops a second writer
-    if os.getppid() != parent:  # the parent died before the request took effect
+    # The parent died before the request took effect: while this script imported (adopted by
+    # init, pid 1), or during the request itself.
+    if parent == 1 or os.getppid() != parent:
         os.kill(os.getpid(), signal.SIGTERM)
 
 

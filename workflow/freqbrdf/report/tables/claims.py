@@ -16,6 +16,7 @@ unconverged baseline measures its budget, not the method.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 
@@ -92,6 +93,14 @@ class _Judge:
         """The mean of ``a - b`` over the units both have."""
         return self.interval((self.values(a, metric) - self.values(b, metric)).dropna(), a, b)
 
+    def converged_count(self, by_object: bool) -> tuple[int, int]:
+        """How many captures (objects, ``by_object``: all of an object's captures) Mitsuba converged
+        on, and of how many it says whether it did."""
+        if not by_object:
+            return int(self.flags.sum()), len(self.flags)
+        per_object = self.flags.groupby(level="object").all()
+        return int(per_object.sum()), len(per_object)
+
     def converged_only(self) -> _Judge:
         """The same metrics on the captures where Mitsuba converged; a merge of Mitsuba's captures
         (a method whose start is ``mitsuba``) only where all its object's captures did."""
@@ -104,33 +113,38 @@ class _Judge:
         return _Judge(self.df[keep], self.context)
 
 
-def _mitsuba_rule(make: Callable[[_Judge, PaperResults], Claim]) -> Callable[[_Judge, PaperResults], Claim]:
+def _mitsuba_rule(make: Callable[[_Judge, PaperResults], Claim],
+                  by_object: bool = False) -> Callable[[_Judge, PaperResults], Claim]:
     """The claim ``make`` judges, under the rule for every claim that reads Mitsuba's estimate:
     judged on the captures where Mitsuba converged (all captures' value beside), ``not judged``
-    when fewer than half did or none says whether it did."""
+    when fewer than half did or none says whether it did. ``by_object``: a claim on a merge of an
+    object's captures counts the objects whose captures all converged."""
 
+    @functools.wraps(make)
     def claim(j: _Judge, paper: PaperResults) -> Claim:
         full = make(j, paper)
         if full.holds == NOT_RUN:
             return full
-        n, k = len(j.flags), int(j.flags.sum())
+        k, n = j.converged_count(by_object)
+        unit = "objects" if by_object else "captures"
         budget = f", budget {j.context.mitsuba_budget}" if j.context.mitsuba_budget else ""
         if n == 0 or 2 * k < n:
-            state = "convergence unknown" if n == 0 else f"Mitsuba converged on {k} of {n} captures, fewer than half"
+            state = "convergence unknown" if n == 0 else f"Mitsuba converged on {k} of {n} {unit}, fewer than half"
             return replace(full, ours=f"not judged: {state}{budget}; {full.ours}", holds=NOT_JUDGED)
         if k == n:
             return full
         part = make(j.converged_only(), paper)
-        return replace(part, ours=f"on the {k} of {n} captures where Mitsuba converged{budget}: {part.ours}; "
-                                  f"on all {n}: {full.ours}")
+        holds = NOT_JUDGED if part.holds == NOT_RUN else part.holds  # it ran, on none of the converged ones
+        return replace(part, holds=holds, ours=f"on the {k} of {n} {unit} where Mitsuba converged{budget}: "
+                                              f"{part.ours}; on all {n}: {full.ours}")
 
-    claim.__name__ = make.__name__
     return claim
 
 
-def _time(j: _Judge, method: str) -> pd.Series:
-    total = j.values(method, "time_total_s", None)
-    return total if len(total) else j.values(method, "time_s", None)
+def _time(j: _Judge, method: str, real: bool | None = None) -> pd.Series:
+    """Per capture, the method's time from the capture (``time_total_s``, else ``time_s``)."""
+    total = j.values(method, "time_total_s", real)
+    return total if len(total) else j.values(method, "time_s", real)
 
 
 def _versus(j: _Judge, claim: str, paper: str, a: str, b: str, metric: str, op: str, threshold: float,
@@ -197,7 +211,7 @@ def _speed_real_claim(j: _Judge, paper: PaperResults) -> Claim | None:
     return Claim("Ours (freq) fits much faster than Mitsuba on real captures",
                  f"{threshold:.1f}x ({fmt_paper(paper.table1[MITSUBA]['time_s'], 2)} s vs "
                  f"{fmt_paper(paper.table1[OURS]['time_s'], 2)} s, Stanford-ORB, Table 1)",
-                 f"{fmt_interval(ratio, 1)}x over {ratio.captures} real capture(s)", judge(ratio, ">=", threshold),
+                 f"{fmt_interval(ratio, 1)}x over {ratio.clusters} real capture(s)", judge(ratio, ">=", threshold),
                  f"time(mitsuba) / time(freq) >= {threshold:.1f} (Table 1), geometric mean over the real captures")
 
 
@@ -287,7 +301,7 @@ def _finetune_time_claim(j: _Judge, paper: PaperResults) -> Claim:
     criterion = (f"PSNR-H(freq+mitsuba) - PSNR-H(mitsuba) > 0 and time(mitsuba) / time(freq+mitsuba) > {divisor:g} "
                  "(geometric mean)")
     psnr = j.difference("freq+mitsuba", "mitsuba", "psnr_h")
-    times = (np.log(_time(j, "mitsuba")) - np.log(_time(j, "freq+mitsuba"))).dropna()
+    times = (np.log(_time(j, "mitsuba", real=False)) - np.log(_time(j, "freq+mitsuba", real=False))).dropna()
     if not ran(j.df, "freq+mitsuba", "mitsuba"):
         return Claim(claim, text, MISSING, NOT_RUN, criterion)
     if psnr is None or times.empty:
@@ -356,7 +370,7 @@ def _views_claim(j: _Judge, paper: PaperResults) -> Claim:
     ours = (f"{fewest} views: MSE {fmt(means.mse_average[fewest])}, entropy {fmt(means.mean_entropy[fewest], 2)}; "
             f"{most}: {fmt(means.mse_average[most])}, {fmt(means.mean_entropy[most], 2)}; rises "
             f"MSE {fmt_interval(rises['mse_average'], 3, sign=True)}, "
-            f"entropy {fmt_interval(rises['mean_entropy'], 2, sign=True)} over {rises['mse_average'].captures} "
+            f"entropy {fmt_interval(rises['mean_entropy'], 2, sign=True)} over {rises['mse_average'].clusters} "
             "capture(s)")
     return Claim(claim, "MSE and mean entropy both rise as views are dropped (Fig. 8)", ours,
                  all_hold(judge(r, ">", 0.0) for r in rises.values()), criterion)
@@ -366,7 +380,7 @@ _CLAIMS: tuple[Callable[[_Judge, PaperResults], Claim | None], ...] = (
     _mitsuba_rule(_speed_claim), _speed_real_claim, _speed_order_claim, _mitsuba_rule(_accuracy_claim),
     _mitsuba_rule(_relight_claim), _spectrum_claim, _ablation_claim, _finetune_claim,
     _mitsuba_rule(_finetune_time_claim), _mitsuba_rule(_entropy_claim), _agreement_claim,
-    _mitsuba_rule(_merge_claim), _views_claim,
+    _mitsuba_rule(_merge_claim, by_object=True), _views_claim,
 )
 
 

@@ -39,7 +39,7 @@ def fmt_interval(interval, digits: int = 3, unit: str = "", sign: bool = False) 
         return MISSING
     form = f"{'+' if sign else ''}.{digits}f"
     if math.isnan(interval.low):  # one capture (or object): no interval
-        return f"{interval.value:{form}}{unit} [n = {interval.captures}]"
+        return f"{interval.value:{form}}{unit} [n = {interval.clusters}]"
     value, low, high = (f"{x:{form}}{unit}" for x in (interval.value, interval.low, interval.high))
     return f"{value} [{low}, {high}]"
 
