@@ -464,3 +464,37 @@ def test_a_run_stops_when_its_training_loss_levels_off_and_else_runs_every_epoch
     assert len(stopped.epoch_loss) == 2 and [r.epoch for r in reports] == [1, 2]
     assert len(full.epoch_loss) == 6  # stop_window 0: every epoch
     np.testing.assert_allclose(stopped.epoch_loss, full.epoch_loss[:2], rtol=1e-5)  # the same run, cut short
+
+
+def test_coarse_textures_are_block_means_and_need_a_divisible_size():
+    textures = {"base_color": np.arange(48, dtype=np.float32).reshape(4, 4, 3) / 48,
+                "roughness": np.arange(16, dtype=np.float32).reshape(4, 4) / 16, "metallic": np.zeros((4, 4))}
+    coarse = inv.coarse_textures(textures, 1)
+    assert coarse["roughness"].shape == (2, 2) and coarse["base_color"].shape == (2, 2, 3)
+    assert coarse["roughness"][0, 1] == pytest.approx(np.mean([2, 3, 6, 7]) / 16)
+    np.testing.assert_array_equal(inv.coarse_textures(textures, 0)["roughness"], textures["roughness"])
+    with pytest.raises(ValueError, match="coarse_levels 3: the textures' 4 texels are not divisible by 8"):
+        inv.coarse_textures(textures, 3)
+    with pytest.raises(ValueError, match=r"epochs \(2\) must exceed coarse_levels x coarse_epochs \(2 x 1\)"):
+        inv.InverseSettings(epochs=2, coarse_levels=2)
+
+
+def test_coarse_to_fine_doubles_the_textures_on_schedule_and_ends_at_full_resolution(mi, capture):
+    """Two levels of two epochs each: epochs 1-2 at R/4, 3-4 at R/2, 5 at R. Evaluated at full size
+    whatever the level (a coarse texel repeated over its block), and the run ends at full size."""
+    settings = inv.InverseSettings(max_depth=4, epochs=5, spp=8, lr=0.05, seed=7, coarse_levels=2, coarse_epochs=2)
+    assert [e for e in range(5) if settings.doubles_before(e)] == [2, 4] and settings.full_resolution_from == 4
+    seen = []
+    result = inv.optimise_textures(mi, capture["mesh"], capture["env"], *subset(capture, [0, 3]),
+                                   inv.constant_textures(TEXELS), settings,
+                                   evaluate=lambda tex: seen.append(tex["roughness"].copy()) or {"mse_average": 0.0})
+
+    def blocky(texture, size):
+        blocks = texture.reshape(TEXELS // size, size, TEXELS // size, size)
+        return bool((blocks == blocks[:, :1, :, :1]).all())
+
+    assert [t.shape for t in seen] == [(TEXELS, TEXELS)] * 6
+    assert blocky(seen[2], 4) and not blocky(seen[2], 8)  # after epoch 2: R/4, and it moved
+    assert blocky(seen[4], 2) and not blocky(seen[4], 4)  # after epoch 4: R/2
+    assert not blocky(seen[5], 2)  # full resolution
+    assert result.textures["roughness"].shape == (TEXELS, TEXELS)

@@ -71,7 +71,7 @@ _PARAM_KEYS = {name: f"object.bsdf.{name}.data" for name in TEXTURES}
 _CHANNELS = {"base_color": 3, "roughness": 1, "metallic": 1}
 
 __all__ = ["LOSSES", "LR_DECAYS", "EpochReport", "InverseResult", "InverseSettings", "check_textures",
-           "constant_textures", "image_loss", "inverse_scene", "lr_factor", "optimise_textures", "render_seeds",
+           "coarse_textures", "constant_textures", "image_loss", "inverse_scene", "lr_factor", "optimise_textures", "render_seeds",
            "sensor_intrinsics", "sensor_views", "step_table", "stop_epoch", "texture_regulariser", "total_variation",
            "view_order"]
 
@@ -538,8 +538,9 @@ def optimise_textures(
                          f"not {mi.variant()}")
     images, weights = _check_captures(cameras, images, weights)
     data = _Views(sensor_views(mi, cameras), images, weights)
-    scene = inverse_scene(mi, mesh, envmap, start, width=cameras.width, height=cameras.height,
-                          spp=settings.spp, max_depth=settings.max_depth)
+    resolution = check_textures(start)["roughness"].shape[0]
+    scene = inverse_scene(mi, mesh, envmap, coarse_textures(start, settings.coarse_levels), width=cameras.width,
+                          height=cameras.height, spp=settings.spp, max_depth=settings.max_depth)
     params = mi.traverse(scene)
     opt = _start_optimiser(mi, params, settings)
 
@@ -547,32 +548,67 @@ def optimise_textures(
     clock = _Clock()
     if evaluate is not None:
         with clock.paused():
-            trace.evaluations.append({"epoch": 0, "elapsed_s": 0.0, **evaluate(_textures(opt))})
+            trace.evaluations.append({"epoch": 0, "elapsed_s": 0.0, **evaluate(_textures(opt, resolution))})
     for epoch in range(settings.epochs):
+        if settings.doubles_before(epoch):
+            for key in _PARAM_KEYS.values():  # a new shape: Adam resets its state
+                r, _, c = opt[key].shape
+                opt[key] = dr.resample(opt[key], (2 * r, 2 * r, c), filter="box")  # each texel to 2 x 2
         _run_epoch(mi, scene, params, opt, data, settings, epoch, trace)
         elapsed = clock.elapsed()
         with clock.paused():
             if evaluate is not None:
-                trace.evaluations.append({"epoch": epoch + 1, "elapsed_s": elapsed, **evaluate(_textures(opt))})
+                trace.evaluations.append({"epoch": epoch + 1, "elapsed_s": elapsed,
+                                          **evaluate(_textures(opt, resolution))})
             if progress is not None:
                 progress(EpochReport(epoch + 1, settings.epochs, trace.epoch_loss[-1], elapsed, _resident_mb()))
-        if settings.stop_window and stop_epoch(trace.epoch_loss, settings.stop_window, settings.stop_fall):
+        full = trace.epoch_loss[settings.full_resolution_from:]  # a coarse level's loss is another problem's
+        if settings.stop_window and stop_epoch(full, settings.stop_window, settings.stop_fall):
             break  # the training loss has levelled off: converged by its own measure, no ground truth
 
     params.update(opt)
-    return InverseResult(textures=_textures(params), loss=np.asarray(trace.loss), views=tuple(trace.views),
+    return InverseResult(textures=_textures(params, resolution), loss=np.asarray(trace.loss), views=tuple(trace.views),
                          epoch=np.asarray(trace.epoch, dtype=np.int64), epoch_loss=np.asarray(trace.epoch_loss),
                          evaluations=trace.evaluations)
 
 
-def _textures(params) -> dict[str, np.ndarray]:
-    """Textures as float32 arrays from the scene's parameters or the optimiser (which holds the
-    latest step's values; the scene gets them at the next step), clamped to [0, 1] after every step."""
+def _textures(params, resolution: int) -> dict[str, np.ndarray]:
+    """Textures as float32 (R, R[, 3]) arrays from the scene's parameters or the optimiser (which holds
+    the latest step's values; the scene gets them at the next step), clamped to [0, 1] after every
+    step; a coarse level's textures repeated to ``resolution`` as its next doubling will."""
     textures = {}
     for name, key in _PARAM_KEYS.items():
         value = np.array(params[key], dtype=np.float32)
+        factor = resolution // value.shape[0]
+        value = value.repeat(factor, axis=0).repeat(factor, axis=1) if factor > 1 else value
         textures[name] = value if _CHANNELS[name] == 3 else value[..., 0]
     return textures
+
+
+def coarse_textures(textures: Mapping[str, np.ndarray], levels: int) -> dict[str, np.ndarray]:
+    """The textures at ``1 / 2**levels`` of their resolution: means of ``2**levels`` square blocks.
+
+    Parameters
+    ----------
+    textures : mapping
+        ``base_color`` (R, R, 3), ``roughness`` and ``metallic`` (R, R) (:func:`check_textures`).
+    levels : int
+        Halvings, >= 0; R must be divisible by ``2**levels``.
+
+    Raises
+    ------
+    ValueError
+        Naming the resolution and the levels when R is not divisible.
+    """
+    textures = check_textures(textures)
+    block = 2 ** check_int(levels, "coarse_levels", 0)
+    if block == 1:
+        return textures
+    r = textures["roughness"].shape[0]
+    if r % block:
+        raise ValueError(f"mitsuba.coarse_levels {levels}: the textures' {r} texels are not divisible by {block}")
+    return {name: t.reshape(r // block, block, r // block, block, *t.shape[2:]).mean(axis=(1, 3)).astype(t.dtype)
+            for name, t in textures.items()}
 
 
 class _Clock:

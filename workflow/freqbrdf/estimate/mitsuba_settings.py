@@ -100,6 +100,14 @@ class InverseSettings:
         ``stop_fall`` from that of the ``stop_window`` before. 0: run every epoch.
     stop_fall : float
         That relative fall, in [0, 1).
+    coarse_levels : int
+        Coarse to fine, as Mitsuba's tutorials optimise textures: the textures start at
+        ``1 / 2**coarse_levels`` of their resolution (block means of the start) and double it,
+        nearest-neighbour, every ``coarse_epochs`` epochs, Adam's state reset at each doubling,
+        until full; 0: full resolution throughout. A run stops by its loss
+        (``stop_window``) only once at full resolution.
+    coarse_epochs : int
+        Epochs at each coarse level, >= 1; ``epochs`` must exceed ``coarse_levels * coarse_epochs``.
     """
 
     epochs: int = 10
@@ -114,6 +122,8 @@ class InverseSettings:
     lr_decay: str = "none"
     stop_window: int = 0
     stop_fall: float = 0.01
+    coarse_levels: int = 0
+    coarse_epochs: int = 1
 
     def __post_init__(self) -> None:
         check_int(self.epochs, "epochs", 1)
@@ -131,6 +141,20 @@ class InverseSettings:
         check_int(self.stop_window, "stop_window", 0)
         if not 0.0 <= _number(self.stop_fall, "stop_fall", positive=False) < 1.0:
             raise ValueError(f"stop_fall must be in [0, 1), got {self.stop_fall!r}")
+        check_int(self.coarse_levels, "coarse_levels", 0)
+        check_int(self.coarse_epochs, "coarse_epochs", 1)
+        if self.epochs <= self.full_resolution_from:
+            raise ValueError(f"epochs ({self.epochs}) must exceed coarse_levels x coarse_epochs "
+                             f"({self.coarse_levels} x {self.coarse_epochs}), so the run ends at full resolution")
+
+    @property
+    def full_resolution_from(self) -> int:
+        """Epochs run at a coarse level before the first at full resolution (0 without coarse levels)."""
+        return self.coarse_levels * self.coarse_epochs
+
+    def doubles_before(self, epoch: int) -> bool:
+        """Whether the textures double their resolution before 0-based ``epoch``."""
+        return 0 < epoch <= self.full_resolution_from and epoch % self.coarse_epochs == 0
 
     def steps_per_epoch(self, n_views: int) -> int:
         """Adam steps of one epoch over ``n_views`` views: ceil(n_views / views_per_step)."""
@@ -159,6 +183,7 @@ def run_settings(config: Mapping, obj: str, env: str, poses: str, method: str) -
     settings = {key: value for key, value in block.items() if key not in ("finetune", "variant")}
     if METHODS[method].start is not None:
         settings.update(block["finetune"])
+        settings["coarse_levels"] = 0  # a fine-tuning starts from an estimate at full resolution
     settings["seed"] = derived_seed(config["seed"], "mitsuba", obj, env, poses, method)
     return settings
 
