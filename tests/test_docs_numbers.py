@@ -47,3 +47,30 @@ def test_every_stated_job_count_is_the_dry_runs(repo, tmp_path):
     stale = [f"{where} states {count} jobs for `snakemake -n{f' --configfile {p}' if p else ''}`; "
              f"the dry run plans {planned[p]}" for where, p, count in statements if count != planned[p]]
     assert not stale, "\n".join(stale)
+
+
+# A Markdown link's target: "](path)" or "](path#anchor)", not a web address.
+LINK = re.compile(r"\]\((?!https?://|mailto:)([^)#\s]*)(#[^)\s]*)?\)")
+
+
+def _anchor(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading: lower case, punctuation dropped, spaces to hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def test_every_relative_link_in_the_docs_names_a_file_and_heading_the_repository_holds():
+    """README, docs/ and config/README point only at files the repository holds (issue 51: the
+    README pointed at a file outside every clone), and at headings those files have."""
+    repo = Path(__file__).resolve().parents[1]
+    broken = []
+    for page in [repo / "README.md", repo / "config" / "README.md", *sorted((repo / "docs").glob("*.md"))]:
+        for match in LINK.finditer(page.read_text()):
+            target = (page.parent / match.group(1)).resolve() if match.group(1) else page
+            where = f"{page.relative_to(repo)}: {match.group(0)}"
+            if not target.exists() or not target.is_relative_to(repo):
+                broken.append(f"{where} (no such file in the repository)")
+            elif match.group(2) and target.suffix == ".md":
+                anchors = {_anchor(h) for h in re.findall(r"^#+ (.+)$", target.read_text(), re.M)}
+                if match.group(2)[1:] not in anchors:
+                    broken.append(f"{where} (no such heading)")
+    assert not broken, "\n".join(broken)
