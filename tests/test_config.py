@@ -133,7 +133,7 @@ def test_size_factor_is_one_on_the_default_and_grows_with_the_work(repo, default
     assert size_factor(paper, "pixels") == pytest.approx(pixels)
     assert size_factor(paper, "samples") == pytest.approx(pixels * 256 / 64)
     assert size_factor(paper, "texels") == pytest.approx((512 / 256) ** 2 * 100 / 24)
-    assert size_factor(paper, "inverse") == pytest.approx(pixels * 32 / 8 * 10 / 6)
+    assert size_factor(paper, "inverse") == pytest.approx(pixels * 32 / 8 * 10 / 48)
     assert size_factor(paper, "agreement") == pytest.approx(100 / 24 * 1024 / 256 * 16 / 8)
     with pytest.raises(ValueError, match="size kind"):
         size_factor(default, "voxels")

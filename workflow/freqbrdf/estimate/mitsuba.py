@@ -61,10 +61,10 @@ import numpy as np
 
 from freqbrdf.estimate.mitsuba_settings import (LOSSES, LR_DECAYS, InverseSettings, lr_factor, render_seeds,
                                               stop_epoch, view_order)
+from freqbrdf.estimate.mitsuba_textures import check_textures, coarse_textures, constant_textures, full_size
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.scene.cameras import Cameras, mitsuba_to_world
 from freqbrdf.scene.render import capture_scene, principled_bsdf
-from freqbrdf.util.validation import check_int
 
 # The object's name in the scene built by render.capture_scene.
 _PARAM_KEYS = {name: f"object.bsdf.{name}.data" for name in TEXTURES}
@@ -151,50 +151,6 @@ def step_table(result: InverseResult, names: Sequence[str]) -> dict[str, np.ndar
             "epoch": np.asarray(result.epoch), "view": ["+".join(names[k] for k in step) for step in result.views]}
 
 
-def constant_textures(resolution: int, value: float = 0.5) -> dict[str, np.ndarray]:
-    """Constant start textures (the baseline starts from 0.5, as in the paper's section 5.1).
-
-    Returns
-    -------
-    dict
-        ``base_color`` (R, R, 3), ``roughness`` and ``metallic`` (R, R), float32.
-    """
-    check_int(resolution, "resolution", 1)
-    if not 0.0 <= value <= 1.0:
-        raise ValueError(f"constant texture value must be in [0, 1], got {value!r}")
-    return {
-        "base_color": np.full((resolution, resolution, 3), value, np.float32),
-        "roughness": np.full((resolution, resolution), value, np.float32),
-        "metallic": np.full((resolution, resolution), value, np.float32),
-    }
-
-
-def check_textures(textures: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """Validate start textures and return them as float32.
-
-    Parameters
-    ----------
-    textures : mapping
-        ``base_color`` (R, R, 3), ``roughness`` (R, R), ``metallic`` (R, R),
-        finite, in [0, 1].
-
-    Raises
-    ------
-    ValueError
-        Naming the texture whose shape or values are wrong.
-    """
-    missing = [name for name in TEXTURES if name not in textures]
-    if missing:
-        raise ValueError(f"start textures: missing {missing}")
-    out = {name: np.asarray(textures[name], dtype=np.float32) for name in TEXTURES}
-    size = out["base_color"].shape[:2]
-    for name, texture in out.items():
-        wanted = size + ((3,) if name == "base_color" else ())
-        if texture.shape != wanted or size[0] != size[1] or size[0] < 1:
-            raise ValueError(f"start textures: {name} is {texture.shape}, expected {wanted} with a square size")
-        if not np.isfinite(texture).all() or texture.min() < 0.0 or texture.max() > 1.0:
-            raise ValueError(f"start textures: {name} values are not finite numbers in [0, 1]")
-    return out
 
 
 def sensor_intrinsics(cameras: Cameras) -> tuple[np.ndarray, np.ndarray]:
@@ -551,9 +507,7 @@ def optimise_textures(
             trace.evaluations.append({"epoch": 0, "elapsed_s": 0.0, **evaluate(_textures(opt, resolution))})
     for epoch in range(settings.epochs):
         if settings.doubles_before(epoch):
-            for key in _PARAM_KEYS.values():  # a new shape: Adam resets its state
-                r, _, c = opt[key].shape
-                opt[key] = dr.resample(opt[key], (2 * r, 2 * r, c), filter="box")  # each texel to 2 x 2
+            _double_resolution(opt)
         _run_epoch(mi, scene, params, opt, data, settings, epoch, trace)
         elapsed = clock.elapsed()
         with clock.paused():
@@ -572,43 +526,25 @@ def optimise_textures(
                          evaluations=trace.evaluations)
 
 
+def _double_resolution(opt) -> None:
+    """Coarse to fine: every texture texel to 2 x 2 (a new shape, so Adam resets its state)."""
+    import drjit as dr
+
+    for key in _PARAM_KEYS.values():
+        r, _, c = opt[key].shape
+        opt[key] = dr.resample(opt[key], (2 * r, 2 * r, c), filter="box")
+
+
 def _textures(params, resolution: int) -> dict[str, np.ndarray]:
     """Textures as float32 (R, R[, 3]) arrays from the scene's parameters or the optimiser (which holds
     the latest step's values; the scene gets them at the next step), clamped to [0, 1] after every
-    step; a coarse level's textures repeated to ``resolution`` as its next doubling will."""
+    step; a coarse level's at full size (:func:`full_size`)."""
     textures = {}
     for name, key in _PARAM_KEYS.items():
-        value = np.array(params[key], dtype=np.float32)
-        factor = resolution // value.shape[0]
-        value = value.repeat(factor, axis=0).repeat(factor, axis=1) if factor > 1 else value
+        value = full_size(np.array(params[key], dtype=np.float32), resolution)
         textures[name] = value if _CHANNELS[name] == 3 else value[..., 0]
     return textures
 
-
-def coarse_textures(textures: Mapping[str, np.ndarray], levels: int) -> dict[str, np.ndarray]:
-    """The textures at ``1 / 2**levels`` of their resolution: means of ``2**levels`` square blocks.
-
-    Parameters
-    ----------
-    textures : mapping
-        ``base_color`` (R, R, 3), ``roughness`` and ``metallic`` (R, R) (:func:`check_textures`).
-    levels : int
-        Halvings, >= 0; R must be divisible by ``2**levels``.
-
-    Raises
-    ------
-    ValueError
-        Naming the resolution and the levels when R is not divisible.
-    """
-    textures = check_textures(textures)
-    block = 2 ** check_int(levels, "coarse_levels", 0)
-    if block == 1:
-        return textures
-    r = textures["roughness"].shape[0]
-    if r % block:
-        raise ValueError(f"mitsuba.coarse_levels {levels}: the textures' {r} texels are not divisible by {block}")
-    return {name: t.reshape(r // block, block, r // block, block, *t.shape[2:]).mean(axis=(1, 3)).astype(t.dtype)
-            for name, t in textures.items()}
 
 
 class _Clock:
