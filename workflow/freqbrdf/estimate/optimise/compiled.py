@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "tv_kernel"]
+__all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "tv_kernel", "adam_kernel"]
 
 _TEXELS = 64  # texels per parallel iteration (one set of scratch arrays each)
 # Levenberg-Marquardt damping: x 1/3 after a kept step, x 4 after a rejected one, within [1e-6, 1e6]
@@ -31,6 +31,16 @@ _FAST_LM = _FAST - {"contract"}
 # The helpers that are neither inlined nor kernels (`_hermite`, `_view_basis`) fix their own
 # flags: numba would compile them once, with the flags of whichever kernel calls them first
 # (l1_kernel's fast math or grid_kernel's none), and a kernel's numbers then hung on that order.
+
+
+@numba.njit(cache=True, inline="always")
+def _blocks(n):  # pragma: no cover - compiled
+    """How many parallel iterations share ``n`` texels: about ``_TEXELS`` each, block b taking
+    texels b, b + blocks, b + 2 blocks... The texels are sorted by their pair count (most first)
+    and numba splits a parallel loop into one contiguous run of iterations per thread, so
+    contiguous blocks gave the first thread most of the pairs; strided, each block holds a
+    sample of the whole range. Each texel is still computed by one iteration, as before."""
+    return max((n + _TEXELS - 1) // _TEXELS, 1)
 
 
 @numba.njit(cache=True, fastmath=False)  # not inlined: numba's parfor array analysis fails on its tuples
@@ -270,13 +280,15 @@ def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
     write_model = model.shape[0] > 0
-    # blocks of texels, so that the scratch arrays are allocated once per block, not per texel
-    for blk in numba.prange((n_tex + _TEXELS - 1) // _TEXELS):
+    # blocks of texels, so that the scratch arrays are allocated once per block, not per texel;
+    # strided (`_blocks`), so that each thread's share holds as many pairs as the other's
+    n_blk = _blocks(n_tex)
+    for blk in numba.prange(n_blk):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
         work = np.empty((6, 3))  # per channel: the model's view-dependent factors and their derivatives (`_pair_terms`)
         shade = np.empty((src.shape[1], 6))  # per point source: power times G1 and its derivative (`_source_shading`)
-        for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
+        for s in range(blk, n_tex, n_blk):
             r = x[s, 3]
             m = x[s, 4]
             alpha = max(r * r, alpha_min)
@@ -317,7 +329,8 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
                 r_grid, m_grid, max_pairs, out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
-    for blk in numba.prange((n_tex + _TEXELS - 1) // _TEXELS):
+    n_blk = _blocks(n_tex)
+    for blk in numba.prange(n_blk):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
         base = np.empty(3)
@@ -328,7 +341,7 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
         diffuse = np.empty((max_pairs, 3))  # d E / pi
         slope = np.empty((max_pairs, 3))  # B = base slope + offset per pair and channel
         offset = np.empty((max_pairs, 3))
-        for s in range(blk * _TEXELS, min(n_tex, (blk + 1) * _TEXELS)):
+        for s in range(blk, n_tex, n_blk):
             lo = start[s]
             k = start[s + 1] - lo
             best = np.inf
@@ -520,7 +533,8 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
               cost_out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n = texels.shape[0]
-    for blk in numba.prange((n + _TEXELS - 1) // _TEXELS):
+    n_blk = _blocks(n)
+    for blk in numba.prange(n_blk):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
         work = np.empty((6, 3))
@@ -531,7 +545,7 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
         rhs = np.empty(5)
         step = np.empty(5)
         trial = np.empty(5)
-        for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
+        for i in range(blk, n, n_blk):
             s = texels[i]
             cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
                                 r0_dielectric, lobe, view, geo, src, nb_start, nb, data_scale, tv_scale, irls_floor,
@@ -574,3 +588,18 @@ def tv_kernel(x, edges, grad):  # pragma: no cover - compiled
             grad[i, q] += step
             grad[j, q] -= step
     return total / m
+
+
+@numba.njit(parallel=True, cache=True)
+def adam_kernel(x, grad, m1, m2, lr, c1, c2, b1, b2, eps, floor):  # pragma: no cover - compiled
+    # no fast math: the same operations in the same order as `solve.adam_step`'s NumPy, so the
+    # same bits, in one pass over the five arrays instead of a dozen temporaries
+    for i in numba.prange(x.shape[0]):
+        for q in range(x.shape[1]):
+            g = grad[i, q]
+            a = b1 * m1[i, q] + (1.0 - b1) * g
+            b = b2 * m2[i, q] + (1.0 - b2) * g * g
+            m1[i, q] = a
+            m2[i, q] = b
+            v = min(max(x[i, q] - lr * (a / c1) / (np.sqrt(b / c2) + eps), 0.0), 1.0)
+            x[i, q] = max(v, floor[q])
