@@ -94,3 +94,25 @@ def test_tv_kernel_matches_the_sparse_difference_operator() -> None:
         kernels.tv_loss_gradient(x, np.zeros((0, 2), np.int64))
     with pytest.raises(ValueError, match="edges must index the 40 rows"):
         kernels.tv_loss_gradient(x, np.array([[0, 40]]))
+
+
+def test_adam_update_is_the_numpy_adam_step_bit_for_bit_then_floored() -> None:
+    from freqbrdf.estimate.optimise.solve import adam_step
+
+    rng = np.random.default_rng(4)
+    x = rng.uniform(0.0, 1.0, (300, 5))
+    x[:5] = [0.0, 1.0, 0.5, 0.001, 1.0]  # at the bounds: the clamp and the roughness floor act
+    m1, m2 = rng.normal(0.0, 0.1, x.shape), rng.uniform(0.0, 0.01, x.shape)
+    x_ref, m1_ref, m2_ref = x.copy(), m1.copy(), m2.copy()
+    floor = np.array([0.0, 0.0, 0.0, 0.05, 0.0])
+    for step in (1, 2, 37):
+        grad = rng.normal(0.0, 1.0, x.shape)
+        x_ref, m1_ref, m2_ref = adam_step(x_ref, grad, m1_ref, m2_ref, step, 0.05)
+        x_ref[:, 3] = np.maximum(x_ref[:, 3], floor[3])
+        kernels.adam_update(x, grad, m1, m2, step, 0.05, (0.9, 0.999), 1e-8, floor)
+        np.testing.assert_array_equal(x, x_ref)
+        np.testing.assert_array_equal(m1, m1_ref)
+        np.testing.assert_array_equal(m2, m2_ref)
+    assert x[:, 3].min() == 0.05 and x.max() <= 1.0
+    with pytest.raises(ValueError, match=r"adam_update: m2 must be C-contiguous float64 of shape \(300, 5\)"):
+        kernels.adam_update(x, grad, m1, m2[:, :4], 1, 0.05, (0.9, 0.999), 1e-8, floor)

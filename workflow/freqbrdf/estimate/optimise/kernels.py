@@ -26,7 +26,7 @@ from freqbrdf.estimate.optimise import compiled, compiled_light
 from freqbrdf.sphere.brdf import ALPHA_MIN, R0_DIELECTRIC
 
 __all__ = ["PairData", "KernelModel", "LmStep", "degree_sums", "shadowing_factors", "basis_factors", "table_sums", "l1_loss_gradient",
-           "grid_search", "lm_sweep", "tv_loss_gradient"]
+           "grid_search", "lm_sweep", "tv_loss_gradient", "adam_update"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -413,3 +413,38 @@ def tv_loss_gradient(x: np.ndarray, edges: np.ndarray) -> tuple[float, np.ndarra
         raise ValueError(f"edges must index the {x.shape[0]} rows of x, got {edges.min()}..{edges.max()}")
     grad = np.empty_like(x)
     return float(compiled.tv_kernel(x, edges, grad)), grad
+
+
+def adam_update(
+    x: np.ndarray, grad: np.ndarray, m1: np.ndarray, m2: np.ndarray, step: int, lr: float,
+    betas: tuple[float, float], eps: float, floor: np.ndarray,
+) -> None:
+    """`freqbrdf.estimate.optimise.solve.adam_step` in place, then ``x = max(x, floor)`` per column.
+
+    The same numbers as the NumPy update, bit for bit, in one pass over the arrays.
+
+    Parameters
+    ----------
+    x, grad, m1, m2 : numpy.ndarray
+        Shape ``(T, Q)``, float64, C-contiguous: parameters, gradient and the two moment
+        estimates; ``x``, ``m1`` and ``m2`` are updated in place.
+    step : int
+        1-based step number (bias correction).
+    lr, eps : float
+        Learning rate and denominator offset.
+    betas : tuple of float
+        Moment decay rates.
+    floor : numpy.ndarray
+        Shape ``(Q,)``, float64: lower bound of each column after the clamp to [0, 1].
+    """
+    arrays = {"x": x, "grad": grad, "m1": m1, "m2": m2}
+    for name, a in arrays.items():
+        if a.shape != x.shape or a.dtype != np.float64 or not a.flags.c_contiguous:
+            raise ValueError(f"adam_update: {name} must be C-contiguous float64 of shape {x.shape}, "
+                             f"got {a.dtype} {a.shape}")
+    floor = np.ascontiguousarray(floor, dtype=np.float64)
+    if floor.shape != x.shape[1:]:
+        raise ValueError(f"adam_update: floor must have shape {x.shape[1:]}, got {floor.shape}")
+    b1, b2 = betas
+    compiled.adam_kernel(x, grad, m1, m2, float(lr), 1.0 - b1**step, 1.0 - b2**step, float(b1), float(b2),
+                         float(eps), floor)

@@ -15,7 +15,7 @@ import numpy as np
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature
 from freqbrdf.estimate.light_table import ShadowedLightTable, read_light_table
-from freqbrdf.estimate.optimise.kernels import LmStep, lm_sweep
+from freqbrdf.estimate.optimise.kernels import LmStep, adam_update, lm_sweep
 from freqbrdf.estimate.optimise.model import ForwardModel, estimate_light
 from freqbrdf.estimate.optimise.posterior import laplace_variance, prior_variance
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params, unpack_params
@@ -320,16 +320,17 @@ def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) ->
         return xp, np.empty(0), light.terms
     m1 = np.zeros_like(xp)
     m2 = np.zeros_like(xp)
+    floor = np.zeros(N_PARAMS)
+    floor[3] = settings.min_roughness
     curve = np.empty(settings.iterations + 1)
-    best, best_loss = xp, np.inf
+    best, best_loss = xp.copy(), np.inf
     for it in range(settings.iterations):
         if it and it % settings.refit_every == 0:
             light.refit(xp)
         curve[it], grad = model.objective(xp, light.terms, settings.tv_weight)
         if curve[it] < best_loss:
-            best, best_loss = xp, curve[it]
-        # adam_step returns a new array, so ``best`` is never written through
-        xp, m1, m2 = adam_step(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps)
-        xp[:, 3] = np.maximum(xp[:, 3], settings.min_roughness)
+            best[:], best_loss = xp, curve[it]
+        # `adam_step` in place, in one pass (the update the loop's own time goes to besides the objective)
+        adam_update(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps, floor)
     curve[-1] = model.objective(xp, light.terms, settings.tv_weight)[0]
     return (xp if curve[-1] <= curve[0] else best), curve, light.terms
