@@ -631,7 +631,7 @@ def test_z_up_capture_with_a_turned_environment_matches_the_original(orb):
     import pandas as pd
 
     from freqbrdf.artefacts import read_observations, read_svbrdf
-    from freqbrdf.report.metrics import parameter_mse
+    from freqbrdf.sphere.brdf import parameter_mse
 
     work, original = orb["workdir"] / "results", orb["original"] / "results"
     scores = pd.read_csv(work / "imports/orb/env_orientation.tsv", sep="\t")
