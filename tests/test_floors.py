@@ -1,4 +1,5 @@
-"""The floors of the freqbrdf package (docs/modules.md, "Floors"): no import climbs.
+"""The floors of the freqbrdf package (docs/modules.md, "Floors"): no import climbs, and an
+edit to the evaluation or the exports reruns no estimator.
 
 A rule's code inputs are its script's transitive imports (`freqbrdf.dependencies`), so an
 import from a lower floor to a higher one makes every edit up there rerun the rules below:
@@ -7,12 +8,15 @@ a figure edit reran every fit while ``artefacts`` imported the report's plots.
 
 from __future__ import annotations
 
+import os
+import re
 import shutil
 from pathlib import Path
 
 import pytest
 
 from freqbrdf.dependencies import package_imports, script_modules
+from workflow_runs import planned_jobs, snakemake
 
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE = REPO / "workflow" / "freqbrdf"
@@ -86,3 +90,37 @@ def test_a_planted_back_import_is_reported(tmp_path: Path, module: str, line: st
 def test_estimators_run_no_evaluation_or_export_code(script: str) -> None:
     modules = script_modules(REPO / "workflow" / "scripts" / f"{script}.py", PACKAGE)
     assert [m for m in modules if m.split("/")[0] in ("report", "export")] == []
+
+
+def stand_in_run(plan: str, workdir: Path, stamp: float) -> None:
+    """Empty files and directories for every output, log and benchmark that the dry run ``plan``
+    (``-n -F``) lists, all modified at ``stamp``: a finished run as far as a dry run can tell."""
+    for kind, names in re.findall(r"^\s+(output|log|benchmark): (.*)$", plan, re.M):
+        for name in names.split(", "):
+            path = workdir / name
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if kind == "output" and not path.suffix:  # the rules' directory() outputs have no suffix
+                path.mkdir(exist_ok=True)
+            else:
+                path.touch()
+            os.utime(path, (stamp, stamp))
+
+
+def test_editing_every_report_and_export_module_reruns_no_estimator(tmp_path: Path) -> None:
+    """One dry run after a comment line is added to every module of report/ and export/, on a
+    copy of the workflow whose tiny run stands finished (empty outputs newer than every source)."""
+    repo, workdir = tmp_path / "repo", tmp_path / "run"
+    for part in ("workflow", "config"):
+        shutil.copytree(REPO / part, repo / part, ignore=shutil.ignore_patterns("__pycache__"))
+    for path in repo.rglob("*"):
+        os.utime(path, (1e9, 1e9))
+    stand_in_run(snakemake(repo, workdir, "-n", "-F").stdout, workdir, 1.5e9)  # between the sources and the edits below
+    assert "Nothing to be done" in snakemake(repo, workdir, "-n").stdout
+    edited = sorted((repo / "workflow" / "freqbrdf" / "report").rglob("*.py")) + sorted(
+        (repo / "workflow" / "freqbrdf" / "export").rglob("*.py"))
+    for path in edited:
+        with path.open("a") as f:
+            f.write("# edited\n")
+    jobs = planned_jobs(snakemake(repo, workdir, "-n").stdout)
+    assert {"metrics", "tables", "export_gltf", "viewer"} <= set(jobs)  # the edits were seen
+    assert sorted(set(jobs) & set(ESTIMATORS)) == []
