@@ -15,7 +15,7 @@ from freqbrdf.util.sizing import SIZE_KINDS, size_factor
 
 @pytest.fixture(scope="module")
 def schema(repo):
-    return repo / "config" / "schemas" / "config.schema.yaml"
+    return repo / "workflow" / "schemas" / "config.schema.yaml"
 
 
 @pytest.fixture()
