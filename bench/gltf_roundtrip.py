@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from freqbrdf.artefacts import read_svbrdf
     from freqbrdf.scene.cameras import Cameras, cameras_from_json
-    from freqbrdf.config import derived_seed
+    from freqbrdf.util.seeds import derived_seed
     from freqbrdf.export.gltf import read_glb
     from freqbrdf.util.io import read_exr, read_json, read_png
     from freqbrdf.scene.ply import write_ply

@@ -33,9 +33,9 @@ from freqbrdf import layout
 from freqbrdf.artefacts import read_entropy, read_observations, read_posterior_std, read_svbrdf
 from freqbrdf.estimate.merge import lowest_merge
 from freqbrdf.estimate.optimise.posterior import expected_error_atlas
-from freqbrdf.report.metrics import parameter_error_map, parameter_mse
+from freqbrdf.report.metrics import parameter_error_map
+from freqbrdf.sphere.brdf import TEXTURES, parameter_mse
 from freqbrdf.report.sparsification import baseline_maps
-from freqbrdf.sphere.brdf import TEXTURES
 
 
 def capture_maps(results: Path, obj: str, env: str, truth, method: str) -> dict:

@@ -38,9 +38,8 @@ from freqbrdf.estimate.mitsuba import constant_textures, optimise_textures
 from freqbrdf.estimate.mitsuba_settings import InverseSettings, run_settings
 from freqbrdf.layout import fill
 from freqbrdf.methods import METHODS
-from freqbrdf.report.metrics import parameter_mse
+from freqbrdf.sphere.brdf import TEXTURES, parameter_mse
 from freqbrdf.scene.cameras import cameras_from_json
-from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.util.io import read_exr, read_json, read_views
 
 REPO = Path(__file__).resolve().parents[1]

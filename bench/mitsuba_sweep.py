@@ -26,10 +26,11 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from freqbrdf.config import derived_seed, merge_config, with_defaults
+from freqbrdf.config import merge_config, with_defaults
+from freqbrdf.util.seeds import derived_seed
 from freqbrdf.estimate.mitsuba import constant_textures, optimise_textures
 from freqbrdf.estimate.mitsuba_settings import InverseSettings
-from freqbrdf.report.metrics import parameter_mse
+from freqbrdf.sphere.brdf import parameter_mse
 from freqbrdf.scene import envmaps
 from freqbrdf.scene.cameras import mitsuba_to_world, rig_cameras
 from freqbrdf.scene.meshes import make_mesh

@@ -31,7 +31,8 @@ import yaml
 
 from freqbrdf import layout
 from freqbrdf.artefacts import read_svbrdf
-from freqbrdf.config import derived_seed, with_defaults
+from freqbrdf.config import with_defaults
+from freqbrdf.util.seeds import derived_seed
 from freqbrdf.report.relight_metrics import HDR_SCALES, HdrScoring, psnr_h, scored_pixels
 from freqbrdf.scene.cameras import mitsuba_to_world, rig_cameras
 from freqbrdf.scene.render import mask_scene, relit_views, render_views

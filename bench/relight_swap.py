@@ -30,7 +30,7 @@ import yaml
 
 from freqbrdf import layout
 from freqbrdf.scene.cameras import cameras_from_json
-from freqbrdf.config import derived_seed
+from freqbrdf.util.seeds import derived_seed
 from freqbrdf.artefacts import read_svbrdf
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.util.io import read_exr, read_json, read_views

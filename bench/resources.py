@@ -1,7 +1,7 @@
 """Declared scheduler resources against what a finished run's jobs used (issue 18; docs/cluster.md).
 
 Every rule declares ``mem_mb`` and ``runtime`` (minutes), scaled from the
-default config's measurements by `freqbrdf.config.size_factor`
+default config's measurements by `freqbrdf.util.sizing.size_factor`
 (``rules/common.smk``: ``memory``, ``minutes``). This script lists, for each
 rule of a finished run, the declared values (from a forced dry run of the
 same config) beside the largest ``max_rss`` (MB) and ``s`` of its jobs'

@@ -7,7 +7,7 @@ import pytest
 
 from freqbrdf import artefacts as af
 from freqbrdf.util.io import read_json, write_exr, write_json
-from freqbrdf.capture.observations import SurfaceTexels
+from freqbrdf.artefacts import SurfaceTexels
 
 
 def surface_texels(n: int, resolution: int = 8) -> SurfaceTexels:

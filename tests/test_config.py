@@ -8,12 +8,14 @@ import pytest
 import yaml
 from snakemake.utils import update_config
 
-from freqbrdf.config import SIZE_KINDS, ConfigError, check_config, derived_seed, size_factor
+from freqbrdf.config import ConfigError, check_config
+from freqbrdf.util.seeds import derived_seed
+from freqbrdf.util.sizing import SIZE_KINDS, size_factor
 
 
 @pytest.fixture(scope="module")
 def schema(repo):
-    return repo / "config" / "schemas" / "config.schema.yaml"
+    return repo / "workflow" / "schemas" / "config.schema.yaml"
 
 
 @pytest.fixture()

@@ -9,7 +9,8 @@ from freqbrdf.util.colour import LUMINANCE
 from freqbrdf.estimate.light import irradiance, light_quadrature
 from freqbrdf.scene.meshes import make_mesh
 from freqbrdf.scene.ply import write_ply
-from freqbrdf.capture.observations import SurfaceTexels, tangent_frame
+from freqbrdf.artefacts import SurfaceTexels
+from freqbrdf.capture.observations import tangent_frame
 from freqbrdf.estimate.spectrum import grid_entropy
 
 L0 = np.array([0.5, 0.7, 0.9])  # the constant environment of the renderer tests

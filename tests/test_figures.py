@@ -6,9 +6,9 @@ import pytest
 from freqbrdf.methods import METHODS
 from freqbrdf.report.figures import (GREY, atlas_masks, capture_maps_figure, draw_capture_maps, error_scale,
                                      relight_figure)
-from freqbrdf.report.plots import pyplot
+from freqbrdf.util.previews import pyplot
 from freqbrdf.util.io import read_png
-from freqbrdf.report.metrics import parameter_mse
+from freqbrdf.sphere.brdf import parameter_mse
 from freqbrdf.report.relight_metrics import HdrScoring, psnr_h
 
 

@@ -132,7 +132,7 @@ def test_the_config_allows_exactly_the_twelve_maps_and_names_a_wrong_one(repo):
 
     from freqbrdf.config import ConfigError, check_config
 
-    schema_file = repo / "config" / "schemas" / "config.schema.yaml"
+    schema_file = repo / "workflow" / "schemas" / "config.schema.yaml"
     schema = yaml.safe_load(schema_file.read_text())
     branches = schema["properties"]["envs"]["additionalProperties"]["allOf"]
     hdri_branch = next(b["then"] for b in branches if b["if"]["properties"]["kind"]["const"] == "hdri")

@@ -252,7 +252,7 @@ def test_config_mistakes_in_the_mitsuba_section_name_the_key(repo, edit, message
     assert {"mitsuba", "freq+mitsuba"} <= set(config["methods"])
     edit(config)
     with pytest.raises(ConfigError, match=message) as info:
-        check_config(copy.deepcopy(config), repo / "config" / "schemas" / "config.schema.yaml")
+        check_config(copy.deepcopy(config), repo / "workflow" / "schemas" / "config.schema.yaml")
     assert "\n" not in str(info.value)
 
 

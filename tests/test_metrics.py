@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from freqbrdf.report.metrics import PARAMETER_COLUMNS, parameter_mse, pearson, texel_parameter_columns
+from freqbrdf.report.metrics import PARAMETER_COLUMNS, pearson, texel_parameter_columns
+from freqbrdf.sphere.brdf import parameter_mse
 
 
 def _svbrdf(value: float, r: int = 4):

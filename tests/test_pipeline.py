@@ -541,6 +541,22 @@ def test_the_readme_report_command_reports_the_tiny_run_without_its_configfile(r
     assert "results/figures/sphere/studio/gt/maps.png" in html and "agreement.png" in html
 
 
+def test_the_catalog_report_zip_holds_the_page_and_every_result(repo, run):
+    """`snakemake --report results/report.zip`, as the workflow catalog's ``report: true``
+    promises (.snakemake-workflow-catalog.yml): the page and each result it shows, as files."""
+    import zipfile
+
+    report = run / "results" / "report.zip"
+    snakemake(repo, run, "--report", "results/report.zip")
+    with zipfile.ZipFile(report) as archive:
+        names = archive.namelist()
+        page = archive.read("report/report.html").decode()
+    report.unlink()  # not an output of the workflow: the other tests' runs must not see it
+    for result in ("tables.html", "claims.html", "metrics.csv", "maps.png", "relight.png"):
+        assert any(n.startswith("report/data/raw/") and n.endswith(f"/{result}") for n in names), result
+    assert "results/figures/sphere/studio/gt/maps.png" in page
+
+
 def test_sfm_on_too_small_a_capture_fails_in_one_line_and_leaves_no_poses(repo, run):
     # 4 views of 32x32 pixels: COLMAP cannot register them, and says so.
     failed = snakemake(repo, run, "results/poses/sphere/studio/colmap", check=False)
@@ -631,7 +647,7 @@ def test_z_up_capture_with_a_turned_environment_matches_the_original(orb):
     import pandas as pd
 
     from freqbrdf.artefacts import read_observations, read_svbrdf
-    from freqbrdf.report.metrics import parameter_mse
+    from freqbrdf.sphere.brdf import parameter_mse
 
     work, original = orb["workdir"] / "results", orb["original"] / "results"
     scores = pd.read_csv(work / "imports/orb/env_orientation.tsv", sep="\t")

@@ -33,15 +33,49 @@ import numpy as np
 
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.util.io import read_exr, read_json, write_exr, write_json
-from freqbrdf.capture.observations import SurfaceTexels
+from freqbrdf.util.previews import texture_preview
 from freqbrdf.util.validation import check_int
-from freqbrdf.report.plots import texture_preview
 from freqbrdf.scene.textures import scatter_to_atlas
 
 OBSERVATIONS_FORMAT = "freqbrdf-observations/1"
 SH_FORMAT = "freqbrdf-sh/1"
 _OBSERVATION_ARRAYS = {"radiance": 3, "weight": 0, "wo_local": 3, "incoming": 3}  # name -> channels (0: none)
 _TEXEL_FIELDS = ("resolution", "texel", "position", "normal", "tangent", "bitangent", "dilated")
+
+
+@dataclass(frozen=True)
+class SurfaceTexels:
+    """Surface points of the valid texels of a UV atlas.
+
+    Attributes
+    ----------
+    resolution : int
+        Atlas size R (R x R texels).
+    texel : ndarray, shape (T,), int64
+        Flat index ``i * R + j`` (row i at v = (i + 0.5)/R, column j at u = (j + 0.5)/R).
+    position, normal, tangent, bitangent : ndarray, shape (T, 3)
+        World position and orthonormal local frame.
+    dilated : ndarray, shape (T,), bool
+        Texels outside every chart, filled from the nearest triangle.
+    """
+
+    resolution: int
+    texel: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
+    tangent: np.ndarray
+    bitangent: np.ndarray
+    dilated: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.texel)
+
+    def subset(self, index: slice | np.ndarray) -> SurfaceTexels:
+        """The texels selected by ``index`` (a slice or index array)."""
+        return SurfaceTexels(
+            self.resolution, self.texel[index], self.position[index], self.normal[index],
+            self.tangent[index], self.bitangent[index], self.dilated[index],
+        )
 
 
 def _check_format(path: Path, meta: Mapping[str, Any], expected: str) -> None:

@@ -1,12 +1,23 @@
-"""Configuration checks and seed derivation shared by the Snakefile and the scripts."""
+"""The run's configuration as the Snakefile handles it when it loads: layered on the embedded
+default, checked against the schema and across keys, and recorded for a later report.
+
+On the top floor of the package (docs/modules.md, "Floors"): it checks names against the
+catalogues of several stages, and no library module imports it. What scripts and rules
+need of the config lives below: `freqbrdf.util.seeds`, `freqbrdf.util.sizing`.
+"""
 
 from __future__ import annotations
 
 import math
-import zlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+from freqbrdf.capture.sfm_options import CONFIG_PREFIX, SfmOptions
+from freqbrdf.methods import METHODS
+from freqbrdf.scene.meshes import OBJECTS
+from freqbrdf.scene.scans import SCANS
+from freqbrdf.util.io import atomic_path
 
 
 class ConfigError(ValueError):
@@ -76,8 +87,6 @@ def record_run_config(config: Mapping[str, Any], path: str | Path) -> None:
     import json
 
     import yaml
-
-    from freqbrdf.util.io import atomic_path
 
     plain = json.loads(json.dumps(config, default=str))  # OrderedDicts (JSON config files) and Paths
     with atomic_path(path) as tmp:
@@ -162,8 +171,6 @@ def _check_env_names(config: dict[str, Any]) -> None:
         raise ConfigError(
             f"config key evaluate.relight_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
         )
-    from freqbrdf.methods import METHODS
-
     unknown = [m for m in config["methods"] if m not in METHODS]
     if unknown:
         raise ConfigError(f"config key methods: {unknown} are not registered methods (freqbrdf.methods: {list(METHODS)})")
@@ -171,8 +178,6 @@ def _check_env_names(config: dict[str, Any]) -> None:
 
 def _check_colmap(colmap: dict[str, Any]) -> None:
     """``poses.colmap`` maps onto `SfmOptions` and leaves the pipeline's own keys alone."""
-    from freqbrdf.capture.sfm_options import CONFIG_PREFIX, SfmOptions
-
     for key in ("seed", "num_threads"):  # set by the pipeline (config seed, rule threads)
         if key in colmap:
             raise ConfigError(f"config key {CONFIG_PREFIX}{key}: set by the pipeline, not in config")
@@ -184,18 +189,14 @@ def _check_colmap(colmap: dict[str, Any]) -> None:
 
 def _check_extra_captures(config: dict[str, Any]) -> None:
     """Real and stress captures have names of their own and consistent settings."""
-    from freqbrdf.scene.meshes import OBJECTS
-    from freqbrdf.scene.scans import SCANS
-
-    CATALOGUE = (*OBJECTS, *SCANS)
-
+    catalogue = (*OBJECTS, *SCANS)
     for name, capture in config["real_captures"].items():
-        if name in CATALOGUE:
+        if name in catalogue:
             raise ConfigError(f"config key real_captures.{name}: the name is taken by a synthetic object")
         if capture["env"] in config["envs"]:
             raise ConfigError(f"config key real_captures.{name}.env: {capture['env']!r} is taken by a synthetic environment")
     for name, capture in config["stress_captures"].items():
-        if name in CATALOGUE or name in config["real_captures"]:
+        if name in catalogue or name in config["real_captures"]:
             raise ConfigError(f"config key stress_captures.{name}: the name is taken by an object or a real capture")
         if capture["env"] not in config["envs"]:
             raise ConfigError(f"config key stress_captures.{name}.env: {capture['env']!r} not defined under envs "
@@ -216,74 +217,3 @@ def _check_framing(render: dict[str, Any]) -> None:
             f"config key render.fov_deg: {render['fov_deg']} degrees is too narrow to frame the object "
             f"(radius 1) from camera_distance {render['camera_distance']}; it needs more than {2 * half_span:.1f}"
         )
-
-
-def derived_seed(seed: int, *names: str) -> int:
-    """A seed for one named item (object, environment, view set), stable across runs.
-
-    Parameters
-    ----------
-    seed : int
-        The global seed from config.
-    *names : str
-        Names that identify the item, e.g. ``("object", "torus")``.
-
-    Returns
-    -------
-    int
-        A 31-bit seed; different names give unrelated seeds.
-    """
-    h = zlib.crc32(str(int(seed)).encode())
-    for name in names:
-        h = zlib.crc32(name.encode(), h)
-    return h & 0x7FFFFFFF
-
-
-# The configuration the rules' measured resources refer to (config/config.yaml as shipped):
-# `size_factor` scales them to another configuration's work.
-REFERENCE_SIZE = {("render", "resolution"): 256, ("render", "spp"): 64, ("render", "train_views"): 24,
-                  ("textures", "resolution"): 256, ("mitsuba", "spp"): 8, ("mitsuba", "epochs"): 48,
-                  ("entropy_agreement", "texels"): 256, ("entropy_agreement", "spp"): 8,
-                  ("entropy_agreement", "grid"): 8}
-SIZE_KINDS = ("fixed", "pixels", "samples", "texels", "inverse", "agreement")
-
-
-def size_factor(config: dict[str, Any], kind: str) -> float:
-    """How much more work a job of ``kind`` does under ``config`` than under the shipped default.
-
-    Parameters
-    ----------
-    config : dict
-        The merged configuration.
-    kind : {"fixed", "pixels", "samples", "texels", "inverse", "agreement"}
-        What the job's time and memory grow with: nothing; the training images'
-        pixels (resolution^2 x views); their samples (pixels x spp); texels x
-        views; the differentiable-rendering baseline's samples (pixels x
-        ``mitsuba.spp`` x ``mitsuba.epochs``); the entropy agreement's paths
-        (texels x spp x grid^3 x views).
-
-    Returns
-    -------
-    float
-        1 for the default configuration.
-    """
-    def ratio(*key: str) -> float:
-        value = config
-        for k in key:
-            value = value[k]
-        return float(value) / REFERENCE_SIZE[key]
-
-    if kind not in SIZE_KINDS:
-        raise ValueError(f"size kind must be one of {SIZE_KINDS}, got {kind!r}")
-    views = ratio("render", "train_views")
-    pixels = ratio("render", "resolution") ** 2 * views
-    factors = {
-        "fixed": 1.0,
-        "pixels": pixels,
-        "samples": pixels * ratio("render", "spp"),
-        "texels": ratio("textures", "resolution") ** 2 * views,
-        "inverse": pixels * ratio("mitsuba", "spp") * ratio("mitsuba", "epochs"),
-        "agreement": views * ratio("entropy_agreement", "texels") * ratio("entropy_agreement", "spp")
-        * ratio("entropy_agreement", "grid") ** 3,
-    }
-    return factors[kind]

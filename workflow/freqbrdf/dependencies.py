@@ -9,6 +9,8 @@ Importing ``freqbrdf.a.b`` runs ``freqbrdf/__init__.py``, ``a/__init__.py`` and
 ``a/b.py``; ``from freqbrdf.a import b`` imports ``b`` as a module when it is
 one (a file or a subpackage), otherwise it is a name of ``a/__init__.py``.
 Relative imports are resolved against the importing file's package, at any level.
+The same parse draws the package's import graph (`package_imports`), whose floors
+``tests/test_floors.py`` checks (docs/modules.md, "Floors").
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import ast
 import functools
 from pathlib import Path
 
-__all__ = ["script_modules"]
+__all__ = ["package_imports", "script_modules"]
 
 PACKAGE = "freqbrdf"
 
@@ -115,3 +117,29 @@ def script_modules(script: str | Path, package_dir: str | Path) -> list[str]:
         stat = source.stat()
         todo |= _package_imports(str(source), here, str(package_dir), (stat.st_mtime_ns, stat.st_size))
     return sorted(str(path.relative_to(package_dir)) for path in seen.values())
+
+
+def package_imports(package_dir: str | Path) -> dict[str, frozenset[str]]:
+    """Every module of the package and the package modules it imports, function-local imports included.
+
+    Parameters
+    ----------
+    package_dir : str or Path
+        The ``freqbrdf`` package directory.
+
+    Returns
+    -------
+    dict of str to frozenset of str
+        Dotted names relative to the package (``"estimate.light"``; ``""`` is the package
+        itself), each with what its own imports run: the enclosing packages of an imported
+        module included, transitive imports not.
+    """
+    package_dir = Path(package_dir)
+    graph = {}
+    for source in sorted(package_dir.rglob("*.py")):
+        parts = source.relative_to(package_dir).with_suffix("").parts
+        here = ".".join(parts[:-1])
+        name = here if parts[-1] == "__init__" else ".".join(parts)
+        stat = source.stat()
+        graph[name] = _package_imports(str(source), here, str(package_dir), (stat.st_mtime_ns, stat.st_size))
+    return graph

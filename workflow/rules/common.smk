@@ -5,7 +5,8 @@ import math
 from dataclasses import asdict
 
 from freqbrdf import layout
-from freqbrdf.config import derived_seed, size_factor
+from freqbrdf.util.seeds import derived_seed
+from freqbrdf.util.sizing import size_factor
 from freqbrdf.dependencies import script_modules
 from freqbrdf.estimate.mitsuba_settings import run_settings
 from freqbrdf.export.viewer import ENTROPY as ENTROPY_OVERLAY
@@ -101,12 +102,12 @@ wildcard_constraints:
 # the benchmark files of a default run (python bench/resources.py) with headroom, and
 # scaled to this configuration by what the job's work grows with.
 def memory(mb, kind="fixed"):
-    """``mb`` scaled by `freqbrdf.config.size_factor`, at least 500."""
+    """``mb`` scaled by `freqbrdf.util.sizing.size_factor`, at least 500."""
     return max(500, math.ceil(mb * size_factor(config, kind)))
 
 
 def minutes(amount, kind="fixed"):
-    """``amount`` minutes scaled by `freqbrdf.config.size_factor`, at least 1."""
+    """``amount`` minutes scaled by `freqbrdf.util.sizing.size_factor`, at least 1."""
     return max(1, math.ceil(amount * size_factor(config, kind)))
 
 

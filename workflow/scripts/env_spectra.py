@@ -3,7 +3,7 @@
 import pandas as pd
 
 from freqbrdf.util.logs import run_script
-from freqbrdf.report.plots import spectra_comparison_figure
+from freqbrdf.util.previews import spectra_comparison_figure
 
 
 def main(smk, log):

@@ -6,7 +6,7 @@ import pandas as pd
 from freqbrdf.scene.envmaps import high_frequency_fraction, sh_spectrum
 from freqbrdf.util.io import atomic_path, read_exr
 from freqbrdf.util.logs import run_script
-from freqbrdf.report.plots import env_spectrum_figure
+from freqbrdf.util.previews import env_spectrum_figure
 
 
 def main(smk, log):
@@ -16,8 +16,9 @@ def main(smk, log):
     table.insert(0, "degree", np.arange(len(spectrum)))
     with atomic_path(smk.output.tsv) as tmp:
         table.to_csv(tmp, sep="\t", index=False, float_format="%.6g")
-    env_spectrum_figure(smk.output.png, smk.wildcards.env, env, spectrum)
-    log.info("%.2f%% of the luminance power is above degree 4", 100 * high_frequency_fraction(spectrum[:, 3], 4))
+    high = high_frequency_fraction(spectrum[:, 3], 4)
+    env_spectrum_figure(smk.output.png, smk.wildcards.env, env, spectrum, high, above=4)
+    log.info("%.2f%% of the luminance power is above degree 4", 100 * high)
 
 
 run_script(main, snakemake)  # noqa: F821 (injected by Snakemake)

@@ -30,7 +30,7 @@ from freqbrdf.capture.observations import (
     rasterise_uv,
 )
 from freqbrdf.capture.view_usability import check_views, nonfinite_views
-from freqbrdf.report.plots import coverage_figure
+from freqbrdf.util.previews import coverage_figure
 from freqbrdf.scene.raycast import distance_maps, mesh_scene, occlusion_test
 
 

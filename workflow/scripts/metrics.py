@@ -12,13 +12,13 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import read_entropy, read_observations, read_posterior_std, read_svbrdf
-from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.sphere.brdf import TEXTURES, parameter_mse
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import atomic_path, read_exr, read_json, read_views
 from freqbrdf.util.logs import run_script
 from freqbrdf.methods import FREQUENCY_RULES, METHODS
 from freqbrdf.report.metrics import (PARAMETER_COLUMNS, base_color_si_scores, brdf_log_error, is_converged,
-                                     last_epoch_change, parameter_error_map, parameter_mse, pearson,
+                                     last_epoch_change, parameter_error_map, pearson,
                                      texel_parameter_columns, time_to_reach)
 from freqbrdf.estimate.optimise.posterior import expected_error
 from freqbrdf.report.sparsification import (baseline_maps, interval_coverage, partial_pearson, sparsification_curves,

@@ -7,14 +7,13 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import read_observations, read_svbrdf, write_svbrdf
-from freqbrdf.sphere.brdf import TEXTURES
-from freqbrdf.report.metrics import parameter_mse
+from freqbrdf.sphere.brdf import TEXTURES, parameter_mse
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.estimate.mitsuba import InverseSettings, constant_textures, optimise_textures, step_table
 from freqbrdf.util.io import atomic_directory, atomic_path, read_exr, read_json, read_views
 from freqbrdf.util.logs import progress, run_script
 from freqbrdf.util.mitsuba_setup import setup_mitsuba
-from freqbrdf.report.plots import loss_figure
+from freqbrdf.util.previews import loss_figure
 
 
 def start_textures(smk) -> dict[str, np.ndarray]:

@@ -8,7 +8,7 @@ from freqbrdf.artefacts import read_svbrdf
 from freqbrdf.util.io import atomic_directory, read_exr, read_json, write_exr
 from freqbrdf.util.logs import progress, run_script
 from freqbrdf.util.mitsuba_setup import setup_mitsuba
-from freqbrdf.report.plots import contact_sheet
+from freqbrdf.util.previews import contact_sheet
 from freqbrdf.scene.render import relit_views
 
 

@@ -10,7 +10,7 @@ from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.util.io import atomic_directory, read_exr, write_exr, write_json, write_png
 from freqbrdf.util.logs import progress, run_script
 from freqbrdf.util.mitsuba_setup import setup_mitsuba
-from freqbrdf.report.plots import contact_sheet
+from freqbrdf.util.previews import contact_sheet
 from freqbrdf.scene.render import capture_bsdf, capture_scene, mask_scene, occluder_disk, render_views
 
 

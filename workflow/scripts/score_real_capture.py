@@ -11,10 +11,10 @@ import pandas as pd
 from scipy.stats import ConstantInputWarning, pearsonr
 
 from freqbrdf.artefacts import read_entropy, read_observations, read_svbrdf
-from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.sphere.brdf import TEXTURES, parameter_mse
 from freqbrdf.util.io import atomic_path
 from freqbrdf.util.logs import run_script
-from freqbrdf.report.metrics import parameter_error_map, parameter_mse
+from freqbrdf.report.metrics import parameter_error_map
 
 COLUMNS = ["object", "env", "poses", "method", "relight_env", "metric", "value"]
 

@@ -10,7 +10,7 @@ from freqbrdf.util.colour import LUMINANCE
 from freqbrdf.util.io import atomic_directory, read_exr
 from freqbrdf.estimate.light import irradiance
 from freqbrdf.util.logs import run_script
-from freqbrdf.report.plots import entropy_figure, texel_spectra_figure
+from freqbrdf.util.previews import entropy_figure, texel_spectra_figure
 from freqbrdf.estimate.spectrum import diffuse_albedo, residual_width, search_fit
 
 

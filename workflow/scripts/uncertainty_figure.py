@@ -3,7 +3,7 @@
 import numpy as np
 import pandas as pd
 
-from freqbrdf.report.plots import sparsification_figure
+from freqbrdf.report.figures import sparsification_figure
 from freqbrdf.util.logs import run_script
 
 

@@ -8,11 +8,10 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import Observations, Svbrdf, read_observations, read_svbrdf, sample_texels
-from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.sphere.brdf import TEXTURES, parameter_mse
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.io import atomic_path, read_exr, read_json
 from freqbrdf.util.logs import run_script
-from freqbrdf.report.metrics import parameter_mse
 from freqbrdf.capture.observations import band_limit_parameter, band_limited_envmap
 from freqbrdf.estimate.light_table import read_light_table
 from freqbrdf.estimate.optimise.model import estimate_light

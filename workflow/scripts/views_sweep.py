@@ -7,11 +7,10 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.artefacts import Svbrdf, read_observations, read_svbrdf
-from freqbrdf.sphere.brdf import TEXTURES
+from freqbrdf.sphere.brdf import TEXTURES, parameter_mse
 from freqbrdf.report.figures import views_figure
 from freqbrdf.util.io import atomic_path, read_exr
 from freqbrdf.util.logs import run_script
-from freqbrdf.report.metrics import parameter_mse
 from freqbrdf.estimate.light_table import read_light_table
 from freqbrdf.estimate.optimise.model import estimate_light
 from freqbrdf.estimate.optimise.settings import OptimiseSettings

@@ -29,50 +29,15 @@ in front of it), and every pixel read is finite.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
+from freqbrdf.artefacts import SurfaceTexels
 from freqbrdf.scene.cameras import Cameras, project
 from freqbrdf.scene.meshes import Mesh
 from freqbrdf.sphere.sh import filter_equirect
 
 Occluded = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
-
-
-@dataclass(frozen=True)
-class SurfaceTexels:
-    """Surface points of the valid texels of a UV atlas.
-
-    Attributes
-    ----------
-    resolution : int
-        Atlas size R (R x R texels).
-    texel : ndarray, shape (T,), int64
-        Flat index ``i * R + j`` (row i at v = (i + 0.5)/R, column j at u = (j + 0.5)/R).
-    position, normal, tangent, bitangent : ndarray, shape (T, 3)
-        World position and orthonormal local frame.
-    dilated : ndarray, shape (T,), bool
-        Texels outside every chart, filled from the nearest triangle.
-    """
-
-    resolution: int
-    texel: np.ndarray
-    position: np.ndarray
-    normal: np.ndarray
-    tangent: np.ndarray
-    bitangent: np.ndarray
-    dilated: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.texel)
-
-    def subset(self, index: slice | np.ndarray) -> SurfaceTexels:
-        """The texels selected by ``index`` (a slice or index array)."""
-        return SurfaceTexels(
-            self.resolution, self.texel[index], self.position[index], self.normal[index],
-            self.tangent[index], self.bitangent[index], self.dilated[index],
-        )
 
 
 def tangent_frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from freqbrdf.config import derived_seed
+from freqbrdf.util.seeds import derived_seed
 from freqbrdf.methods import METHODS
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.util.validation import check_choice, check_int

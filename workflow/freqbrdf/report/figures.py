@@ -1,7 +1,7 @@
-"""Per-capture figures of the report: recovered maps against ground truth with
-the entropy and error maps, and relit renders beside the ground-truth renders.
+"""The report's figures: recovered maps against ground truth with the entropy and error maps,
+relit renders beside the ground-truth renders, convergence and sparsification curves.
 
-Kept apart from :mod:`freqbrdf.report.plots` (whose figure helpers it shares) on
+Kept apart from :mod:`freqbrdf.util.previews` (whose figure helpers it shares) on
 purpose: rules declare the library modules they run as inputs, and only the
 report rules use these figures, so editing them reruns nothing upstream.
 """
@@ -16,9 +16,9 @@ import numpy as np
 
 from freqbrdf.util.colour import to_srgb, tonemap
 from freqbrdf.report.metrics import parameter_error_map
-from freqbrdf.report.plots import atlas_image, pyplot, save_figure
 from freqbrdf.report.relight_metrics import STANFORD_ORB, HdrScoring, hdr_pair, psnr_h
 from freqbrdf.report.tables.display import method_label  # the registry's display names, as the tables print them
+from freqbrdf.util.previews import atlas_image, pyplot, save_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -491,4 +491,38 @@ def stress_figure(path: str | os.PathLike, rows: list[Mapping[str, object]], met
             if r == 0 or title == titles[2]:
                 ax.set_title(title, fontsize=9)
             fig.colorbar(shown, ax=ax, fraction=0.046)
+    save_figure(fig, path)
+
+
+SPARSIFICATION_STYLE = {"entropy": ("C3", "-"), "views": ("C0", "-"), "light": ("C2", "-"),
+                        "random": ("0.5", ":"), "oracle": ("k", "--")}
+"""Colour and line of each uncertainty map's sparsification curve (the others are not drawn)."""
+
+
+def sparsification_figure(path: str | os.PathLike, curves: pd.DataFrame, method: str, error: str = "parameter") -> None:
+    """Sparsification curves of one method, one panel per capture.
+
+    Parameters
+    ----------
+    curves : DataFrame
+        ``object, env, poses, method, error, map, fraction, value`` (rule metrics' sparsification.tsv).
+    method, error : str
+        Which method's curves, for which per-texel error.
+    """
+    rows = curves[(curves.method == method) & (curves.error == error)]
+    captures = list(dict.fromkeys(zip(rows.object, rows.env, rows.poses)))
+    if not captures:
+        raise ValueError(f"no sparsification curves of method {method!r} for the {error} error")
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(captures), figsize=(3.2 * len(captures), 3.0), squeeze=False, sharey=True)
+    for ax, (obj, env, poses) in zip(axes[0], captures):
+        own = rows[(rows.object == obj) & (rows.env == env) & (rows.poses == poses)]
+        for name, (colour, line) in SPARSIFICATION_STYLE.items():
+            curve = own[own["map"] == name]
+            ax.plot(curve.fraction, curve.value, color=colour, linestyle=line, label=name)
+        ax.set_title(f"{obj} / {env}")
+        ax.set_xlabel("fraction of texels removed")
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel(f"mean {error} error of the rest (relative)")
+    axes[0, -1].legend(fontsize=8)
     save_figure(fig, path)

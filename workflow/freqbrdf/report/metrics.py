@@ -14,42 +14,12 @@ from freqbrdf.sphere.brdf import R0_DIELECTRIC, TEXTURES, alpha_from_roughness, 
 from freqbrdf.util.validation import check_shape
 
 
-def parameter_mse(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray], texels: np.ndarray) -> dict[str, float]:
-    """Mean squared error per parameter group over selected texels, and their average.
-
-    Parameters
-    ----------
-    truth, estimate : dict
-        ``base_color`` (R, R, 3), ``roughness`` (R, R), ``metallic`` (R, R) in [0, 1].
-    texels : ndarray, shape (N,), int
-        Flat indices ``i * R + j`` of the texels to score (e.g. the observed ones).
-
-    Returns
-    -------
-    dict
-        ``base_color``, ``roughness``, ``metallic`` (base colour averaged over
-        its channels) and ``average`` (mean of the three, as in the paper's Table 2).
-    """
-    if len(texels) == 0:
-        raise ValueError("parameter_mse: no texels to score")
-    out = {}
-    for name in TEXTURES:
-        if truth[name].shape != estimate[name].shape:
-            raise ValueError(f"parameter_mse: {name} is {estimate[name].shape}, ground truth {truth[name].shape}")
-        n = truth[name].shape[0] * truth[name].shape[1]
-        t = truth[name].reshape(n, -1)[texels].astype(np.float64)
-        e = estimate[name].reshape(n, -1)[texels].astype(np.float64)
-        out[name] = float(np.mean((t - e) ** 2))
-    out["average"] = float(np.mean([out[name] for name in TEXTURES]))
-    return out
-
-
 def parameter_error_map(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray]) -> np.ndarray:
     """Per-texel squared parameter error: the texel-wise counterpart of ``parameter_mse``'s average.
 
     Each group's squared error (base colour averaged over its channels) is
     averaged over the three groups, so the mean of the map over a set of
-    texels equals ``parameter_mse(...)["average"]`` over the same texels.
+    texels equals ``parameter_mse(...)["average"]`` (:func:`freqbrdf.sphere.brdf.parameter_mse`) over the same texels.
 
     Parameters
     ----------

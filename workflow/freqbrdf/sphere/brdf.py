@@ -4,8 +4,9 @@ Mitsuba's principled BSDF (Burley 2012) is parametrised by base colour,
 roughness and metallic; the frequency-domain model (Wiersma et al. 2024,
 sections 3.2 and 4.1, Eqs. 8-11) by a diffuse albedo K_d, a specular
 reflectance K_s at normal incidence and a GGX width alpha. This module maps
-between the two (the paper's Eqs. 26-30)
-and holds the constants both sides share.
+between the two (the paper's Eqs. 26-30), holds the constants both sides share,
+and measures parameters against a reference (`parameter_mse`: the error the Mitsuba baseline
+logs after every epoch and the metrics score, defined once below both).
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from freqbrdf.util.validation import check_shape
 TEXTURES = ("base_color", "roughness", "metallic")
 """The principled parameters as textures, in the order of every table and figure."""
 
-__all__ = ["TEXTURES", "R0_DIELECTRIC", "ALPHA_MIN", "alpha_from_roughness", "tan2_theta", "smith_g1", "principled_from_lobes"]
+__all__ = ["TEXTURES", "R0_DIELECTRIC", "ALPHA_MIN", "alpha_from_roughness", "tan2_theta", "smith_g1", "principled_from_lobes",
+           "parameter_mse"]
 
 R0_DIELECTRIC = 0.04  # Disney/Mitsuba principled: specular reflectance at normal incidence of a dielectric
 ALPHA_MIN = 1e-3  # Mitsuba's principled BSDF clamps alpha here
@@ -138,3 +140,33 @@ def principled_from_lobes(
     base = ((1.0 - mm) * d + mm * (k - R0_DIELECTRIC * (1.0 - mm))) / ((1.0 - mm) ** 2 + mm**2)
     roughness = np.sqrt(np.clip(a, 0.0, 1.0))
     return np.clip(base, 0.0, 1.0), roughness, m
+
+
+def parameter_mse(truth: dict[str, np.ndarray], estimate: dict[str, np.ndarray], texels: np.ndarray) -> dict[str, float]:
+    """Mean squared error per parameter group over selected texels, and their average.
+
+    Parameters
+    ----------
+    truth, estimate : dict
+        ``base_color`` (R, R, 3), ``roughness`` (R, R), ``metallic`` (R, R) in [0, 1].
+    texels : ndarray, shape (N,), int
+        Flat indices ``i * R + j`` of the texels to score (e.g. the observed ones).
+
+    Returns
+    -------
+    dict
+        ``base_color``, ``roughness``, ``metallic`` (base colour averaged over
+        its channels) and ``average`` (mean of the three, as in the paper's Table 2).
+    """
+    if len(texels) == 0:
+        raise ValueError("parameter_mse: no texels to score")
+    out = {}
+    for name in TEXTURES:
+        if truth[name].shape != estimate[name].shape:
+            raise ValueError(f"parameter_mse: {name} is {estimate[name].shape}, ground truth {truth[name].shape}")
+        n = truth[name].shape[0] * truth[name].shape[1]
+        t = truth[name].reshape(n, -1)[texels].astype(np.float64)
+        e = estimate[name].reshape(n, -1)[texels].astype(np.float64)
+        out[name] = float(np.mean((t - e) ** 2))
+    out["average"] = float(np.mean([out[name] for name in TEXTURES]))
+    return out

@@ -1,18 +1,20 @@
-"""Figures of the pipeline (matplotlib, non-interactive backend)."""
+"""Previews the rules write beside their outputs: contact sheets, texture previews, and the
+figures of environment spectra, coverage, entropy and loss (matplotlib, non-interactive backend).
+
+On the lowest floor (docs/modules.md, "Floors") because renderers and estimators write these
+previews: code on the report's floor would make every figure edit rerun them. The report's
+own figures are in :mod:`freqbrdf.report.figures`.
+"""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from freqbrdf.util.io import atomic_path
 from freqbrdf.util.colour import to_srgb, tonemap
-
-if TYPE_CHECKING:  # pandas only in annotations: the estimator's jobs, which import this module, do not load it
-    import pandas as pd
+from freqbrdf.util.io import atomic_path, write_png
 
 
 def pyplot():
@@ -33,7 +35,8 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> None:
     pyplot().close(fig)
 
 
-def env_spectrum_figure(path: str | os.PathLike, name: str, envmap: np.ndarray, spectrum: np.ndarray, above: int = 4) -> None:
+def env_spectrum_figure(path: str | os.PathLike, name: str, envmap: np.ndarray, spectrum: np.ndarray, high_fraction: float,
+                        above: int = 4) -> None:
     """Environment preview beside its SH power spectrum (luminance and RGB).
 
     Parameters
@@ -45,11 +48,12 @@ def env_spectrum_figure(path: str | os.PathLike, name: str, envmap: np.ndarray, 
     envmap : ndarray, shape (H, W, 3)
     spectrum : ndarray, shape (lmax + 1, 4)
         From :func:`freqbrdf.scene.envmaps.sh_spectrum`.
+    high_fraction : float
+        Share of the luminance power above degree ``above``
+        (:func:`freqbrdf.scene.envmaps.high_frequency_fraction`), for the caption.
     above : int
-        Degree after which power counts as high frequency in the caption.
+        Degree after which power counts as high frequency.
     """
-    from freqbrdf.scene.envmaps import high_frequency_fraction
-
     plt = pyplot()
     fig, (ax_img, ax_spec) = plt.subplots(1, 2, figsize=(11, 3.4), gridspec_kw={"width_ratios": [1.6, 1]})
     ax_img.imshow(tonemap(envmap))
@@ -59,8 +63,7 @@ def env_spectrum_figure(path: str | os.PathLike, name: str, envmap: np.ndarray, 
     for c, colour in enumerate(["tab:red", "tab:green", "tab:blue"]):
         ax_spec.semilogy(degrees, spectrum[:, c] / spectrum[:, 3].sum(), color=colour, alpha=0.35, lw=1)
     ax_spec.semilogy(degrees, spectrum[:, 3] / spectrum[:, 3].sum(), "k.-", label="luminance")
-    frac = high_frequency_fraction(spectrum[:, 3], above)
-    ax_spec.set_title(f"SH power, {100 * frac:.1f}% above degree {above}")
+    ax_spec.set_title(f"SH power, {100 * high_fraction:.1f}% above degree {above}")
     ax_spec.set_xlabel("degree l")
     ax_spec.set_ylabel("S(l) / total power")
     ax_spec.grid(alpha=0.3)
@@ -95,8 +98,6 @@ def contact_sheet(path: str | os.PathLike, images: list[np.ndarray], columns: in
     images : list of ndarray, shape (H, W, 3)
         Linear radiance, all the same size.
     """
-    from freqbrdf.util.io import write_png
-
     rows = -(-len(images) // columns)
     h, w = images[0].shape[:2]
     sheet = np.zeros((rows * h, columns * w, 3))
@@ -108,8 +109,6 @@ def contact_sheet(path: str | os.PathLike, images: list[np.ndarray], columns: in
 
 def texture_preview(path: str | os.PathLike, texture: np.ndarray, srgb: bool) -> None:
     """PNG preview of a texture: sRGB-encoded colour, or linear grey values."""
-    from freqbrdf.util.io import write_png
-
     write_png(path, to_srgb(texture) if srgb else np.clip(texture, 0.0, 1.0))
 
 
@@ -213,38 +212,4 @@ def loss_figure(path: str | os.PathLike, curve: np.ndarray, title: str, ylabel: 
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.grid(alpha=0.3)
-    save_figure(fig, path)
-
-
-SPARSIFICATION_STYLE = {"entropy": ("C3", "-"), "views": ("C0", "-"), "light": ("C2", "-"),
-                        "random": ("0.5", ":"), "oracle": ("k", "--")}
-"""Colour and line of each uncertainty map's sparsification curve (the others are not drawn)."""
-
-
-def sparsification_figure(path: str | os.PathLike, curves: pd.DataFrame, method: str, error: str = "parameter") -> None:
-    """Sparsification curves of one method, one panel per capture.
-
-    Parameters
-    ----------
-    curves : DataFrame
-        ``object, env, poses, method, error, map, fraction, value`` (rule metrics' sparsification.tsv).
-    method, error : str
-        Which method's curves, for which per-texel error.
-    """
-    rows = curves[(curves.method == method) & (curves.error == error)]
-    captures = list(dict.fromkeys(zip(rows.object, rows.env, rows.poses)))
-    if not captures:
-        raise ValueError(f"no sparsification curves of method {method!r} for the {error} error")
-    plt = pyplot()
-    fig, axes = plt.subplots(1, len(captures), figsize=(3.2 * len(captures), 3.0), squeeze=False, sharey=True)
-    for ax, (obj, env, poses) in zip(axes[0], captures):
-        own = rows[(rows.object == obj) & (rows.env == env) & (rows.poses == poses)]
-        for name, (colour, line) in SPARSIFICATION_STYLE.items():
-            curve = own[own["map"] == name]
-            ax.plot(curve.fraction, curve.value, color=colour, linestyle=line, label=name)
-        ax.set_title(f"{obj} / {env}")
-        ax.set_xlabel("fraction of texels removed")
-        ax.grid(alpha=0.3)
-    axes[0, 0].set_ylabel(f"mean {error} error of the rest (relative)")
-    axes[0, -1].legend(fontsize=8)
     save_figure(fig, path)
