@@ -17,7 +17,8 @@ import numpy as np
 
 __all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "tv_kernel", "adam_kernel"]
 
-_TEXELS = 64  # texels per parallel iteration (one set of scratch arrays each)
+_TEXELS = 64  # texels per parallel iteration on average (one set of scratch arrays each)
+_TEXEL_WORK = 4  # a texel's own work (lobe, view basis, sources) in pairs' worth, for balancing blocks
 # Levenberg-Marquardt damping: x 1/3 after a kept step, x 4 after a rejected one, within [1e-6, 1e6]
 _LM_DOWN, _LM_UP, _LM_MIN, _LM_MAX = 1.0 / 3.0, 4.0, 1e-6, 1e6
 # Fast math without "reassoc", "nnan" and "ninf" (the Cholesky's positive-pivot test must
@@ -34,13 +35,34 @@ _FAST_LM = _FAST - {"contract"}
 
 
 @numba.njit(cache=True, inline="always")
-def _blocks(n):  # pragma: no cover - compiled
-    """How many parallel iterations share ``n`` texels: about ``_TEXELS`` each, block b taking
-    texels b, b + blocks, b + 2 blocks... The texels are sorted by their pair count (most first)
-    and numba splits a parallel loop into one contiguous run of iterations per thread, so
-    contiguous blocks gave the first thread most of the pairs; strided, each block holds a
-    sample of the whole range. Each texel is still computed by one iteration, as before."""
-    return max((n + _TEXELS - 1) // _TEXELS, 1)
+def _block_bounds(start, texels):  # pragma: no cover - compiled
+    """Contiguous blocks of ``texels`` (rows of ``start``) with about equal work each, about
+    ``_TEXELS`` texels on average: block b takes ``texels[bounds[b]:bounds[b + 1]]``.
+
+    A texel's work is its pairs (none past the observed texels) plus ``_TEXEL_WORK``, the per-texel
+    part (lobe, view basis, sources) in pairs' worth. The texels are sorted by pair count (most
+    first) and numba splits a parallel loop into one run of iterations per thread, so blocks of
+    equal texel counts gave the first thread 73% of the pairs; contiguous, because every pair
+    a block reads then follows the last one in memory (texels taken strided, for balance, cost a
+    single thread 40% more time).
+    """
+    n = texels.shape[0]
+    n_obs = start.shape[0] - 1
+    cum = np.empty(n + 1, np.int64)
+    cum[0] = 0
+    for i in range(n):
+        t = texels[i]
+        cum[i + 1] = cum[i] + _TEXEL_WORK + (start[t + 1] - start[t] if t < n_obs else 0)
+    n_blk = max((n + _TEXELS - 1) // _TEXELS, 1)
+    bounds = np.empty(n_blk + 1, np.int64)
+    i = 0
+    for b in range(n_blk):
+        target = (cum[n] * b) // n_blk
+        while cum[i] < target:
+            i += 1
+        bounds[b] = i
+    bounds[n_blk] = n
+    return bounds
 
 
 @numba.njit(cache=True, fastmath=False)  # not inlined: numba's parfor array analysis fails on its tuples
@@ -139,8 +161,8 @@ def _model(m, base, e_pi, r0_dielectric, work, c):  # pragma: no cover - compile
 
 
 @numba.njit(cache=True, inline="always")
-def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo,
-                shade):  # pragma: no cover - compiled
+def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade,
+                slopes):  # pragma: no cover - compiled
     """Per channel of pair n, the specular term split as ``R0 work[0] + work[1]``, in ``work[2]``,
     ``work[3]`` their derivatives in alpha, in ``work[4]`` and ``work[5]`` the diffuse factor d and
     its derivative.
@@ -150,6 +172,9 @@ def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd
     (`freqbrdf.sphere.lobes.view_table`; ``vi``, ``vw``, ``vd`` from `_hermite` at alpha), ``a`` and
     ``b`` the paper's if the table holds ``d`` only. Then the point sources add their own
     microfacet terms (`_point_sources`, ``shade`` from `_source_shading` of the pair's texel).
+    Without ``slopes`` (a constant at each call, so the compiler drops the other branch) only the
+    values: ``work[0]``, ``work[1]`` and ``work[4]``, the same bits, for the callers that need no
+    derivative (the grid start, a trial step's cost).
     """
     if view.shape[0] == 0 or view.shape[2] == 1 or shade.shape[0]:
         g1, dg1 = _masking(alpha, tan2[n], masking)  # once: the paper's weight and the sources both need it
@@ -168,25 +193,27 @@ def _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd
         s0 += f[l] * light[n, l, 0]
         s1 += f[l] * light[n, l, 1]
         s2 += f[l] * light[n, l, 2]
-        d0 += fd[l] * light[n, l, 0]
-        d1 += fd[l] * light[n, l, 1]
-        d2 += fd[l] * light[n, l, 2]
-    _pair_specular(u, v, du, dv, dif, ddif, s0, d0, work, 0)
-    _pair_specular(u, v, du, dv, dif, ddif, s1, d1, work, 1)
-    _pair_specular(u, v, du, dv, dif, ddif, s2, d2, work, 2)
+        if slopes:
+            d0 += fd[l] * light[n, l, 0]
+            d1 += fd[l] * light[n, l, 1]
+            d2 += fd[l] * light[n, l, 2]
+    _pair_specular(u, v, du, dv, dif, ddif, s0, d0, work, 0, slopes)
+    _pair_specular(u, v, du, dv, dif, ddif, s1, d1, work, 1, slopes)
+    _pair_specular(u, v, du, dv, dif, ddif, s2, d2, work, 2, slopes)
     if shade.shape[0]:
-        _point_sources(alpha, geo, n, g1, dg1, shade, work)
+        _point_sources(alpha, geo, n, g1, dg1, shade, work, slopes)
 
 
 @numba.njit(cache=True, inline="always")
-def _pair_specular(u, v, du, dv, dif, ddif, s, d, work, c):  # pragma: no cover - compiled
+def _pair_specular(u, v, du, dv, dif, ddif, s, d, work, c, slopes):  # pragma: no cover - compiled
     """Channel c of `_pair_terms`' ``work`` from the lobe-filtered light ``s`` and its derivative ``d``."""
     work[0, c] = u * s
     work[1, c] = v * s
-    work[2, c] = du * s + u * d
-    work[3, c] = dv * s + v * d
     work[4, c] = dif
-    work[5, c] = ddif
+    if slopes:
+        work[2, c] = du * s + u * d
+        work[3, c] = dv * s + v * d
+        work[5, c] = ddif
 
 
 @numba.njit(cache=True, inline="always")
@@ -201,7 +228,7 @@ def _source_shading(alpha, src, s, shade):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
-def _point_sources(alpha, geo, n, gm, dgm, shade, work):  # pragma: no cover - compiled
+def _point_sources(alpha, geo, n, gm, dgm, shade, work, slopes):  # pragma: no cover - compiled
     """Add the point sources to the specular parts of pair n (`_pair_terms`): each source's GGX
     microfacet BRDF times cos theta_i, ``D G1(theta_i) G1m F / (4 cos theta_o)`` with Schlick's
     ``F = R0 (1 - c5h) + c5h`` at the half vector, times its power; ``geo[n, j]`` the
@@ -238,18 +265,19 @@ def _point_sources(alpha, geo, n, gm, dgm, shade, work):  # pragma: no cover - c
         w2 += value * c5h
         dv2 += slope * (1.0 - c5h)
         dw2 += slope * c5h
-    _add_sources(v0, w0, dv0, dw0, work, 0)
-    _add_sources(v1, w1, dv1, dw1, work, 1)
-    _add_sources(v2, w2, dv2, dw2, work, 2)
+    _add_sources(v0, w0, dv0, dw0, work, 0, slopes)
+    _add_sources(v1, w1, dv1, dw1, work, 1, slopes)
+    _add_sources(v2, w2, dv2, dw2, work, 2, slopes)
 
 
 @numba.njit(cache=True, inline="always")
-def _add_sources(v, w, dv, dw, work, c):  # pragma: no cover - compiled
-    """Add channel c of `_point_sources`' sums to ``work``."""
+def _add_sources(v, w, dv, dw, work, c, slopes):  # pragma: no cover - compiled
+    """Add channel c of `_point_sources`' sums to ``work`` (the slopes only with ``slopes``)."""
     work[0, c] += v
     work[1, c] += w
-    work[2, c] += dv
-    work[3, c] += dw
+    if slopes:
+        work[2, c] += dv
+        work[3, c] += dw
 
 
 @numba.njit(cache=True, inline="always")
@@ -281,14 +309,14 @@ def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
     n_tex = start.shape[0] - 1
     write_model = model.shape[0] > 0
     # blocks of texels, so that the scratch arrays are allocated once per block, not per texel;
-    # strided (`_blocks`), so that each thread's share holds as many pairs as the other's
-    n_blk = _blocks(n_tex)
-    for blk in numba.prange(n_blk):
+    # of equal work (`_block_bounds`), so that each thread's share holds as many pairs as the other's
+    bounds = _block_bounds(start, np.arange(n_tex))
+    for blk in numba.prange(bounds.shape[0] - 1):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
         work = np.empty((6, 3))  # per channel: the model's view-dependent factors and their derivatives (`_pair_terms`)
         shade = np.empty((src.shape[1], 6))  # per point source: power times G1 and its derivative (`_source_shading`)
-        for s in range(blk, n_tex, n_blk):
+        for s in range(bounds[blk], bounds[blk + 1]):
             r = x[s, 3]
             m = x[s, 4]
             alpha = max(r * r, alpha_min)
@@ -300,7 +328,7 @@ def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
             # the sums over pairs in scalars, not in an array the compiler must store at every pair
             diffuse0 = diffuse1 = diffuse2 = rise0 = rise1 = rise2 = 0.0
             for n in range(start[s], start[s + 1]):
-                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade)
+                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade, True)
                 g0, res0, d0 = _residual(m, x, s, e_pi, r0_dielectric, work, radiance, n, 0, write_model, model)
                 g1, res1, d1 = _residual(m, x, s, e_pi, r0_dielectric, work, radiance, n, 1, write_model, model)
                 g2, res2, d2 = _residual(m, x, s, e_pi, r0_dielectric, work, radiance, n, 2, write_model, model)
@@ -329,8 +357,8 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
                 r_grid, m_grid, max_pairs, out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n_tex = start.shape[0] - 1
-    n_blk = _blocks(n_tex)
-    for blk in numba.prange(n_blk):
+    bounds = _block_bounds(start, np.arange(n_tex))
+    for blk in numba.prange(bounds.shape[0] - 1):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
         base = np.empty(3)
@@ -341,7 +369,7 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
         diffuse = np.empty((max_pairs, 3))  # d E / pi
         slope = np.empty((max_pairs, 3))  # B = base slope + offset per pair and channel
         offset = np.empty((max_pairs, 3))
-        for s in range(blk, n_tex, n_blk):
+        for s in range(bounds[blk], bounds[blk + 1]):
             lo = start[s]
             k = start[s + 1] - lo
             best = np.inf
@@ -351,7 +379,7 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
                 _source_shading(alpha, src, s, shade)
                 vi, vw, vd = _view_basis(alpha, alpha_min, view)
                 for i in range(k):
-                    _pair_terms(alpha, f, fd, light, lo + i, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade)
+                    _pair_terms(alpha, f, fd, light, lo + i, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade, False)
                     for c in range(3):
                         rise[i, c] = work[0, c]
                         fixed[i, c] = work[1, c]
@@ -394,7 +422,7 @@ def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
         vi, vw, vd = _view_basis(alpha, alpha_min, view)
         m = xs[4]
         for n in range(start[s], start[s + 1]):
-            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade)
+            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade, False)
             for c in range(3):
                 cost += abs(_model(m, xs[c], e_pi[s, c], r0_dielectric, work, c) - radiance[n, c])
         cost *= data_scale
@@ -459,7 +487,7 @@ def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
         _source_shading(alpha, src, s, shade)
         vi, vw, vd = _view_basis(alpha, alpha_min, view)
         for p in range(lo, hi):
-            _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade)
+            _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade, True)
             for c in range(3):
                 res = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c) - radiance[p, c]
                 cost += abs(res)
@@ -533,8 +561,8 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
               cost_out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
     n = texels.shape[0]
-    n_blk = _blocks(n)
-    for blk in numba.prange(n_blk):
+    bounds = _block_bounds(start, texels)
+    for blk in numba.prange(bounds.shape[0] - 1):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
         work = np.empty((6, 3))
@@ -545,7 +573,7 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
         rhs = np.empty(5)
         step = np.empty(5)
         trial = np.empty(5)
-        for i in range(blk, n, n_blk):
+        for i in range(bounds[blk], bounds[blk + 1]):
             s = texels[i]
             cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
                                 r0_dielectric, lobe, view, geo, src, nb_start, nb, data_scale, tv_scale, irls_floor,
