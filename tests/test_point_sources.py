@@ -7,6 +7,7 @@ import pytest
 from test_optimise import MODELS, OPTIMISER_METHODS, central_differences, local_hemisphere, tables, variant
 
 from freqbrdf.estimate import light as lt
+from freqbrdf.estimate.optimise import kernels
 from freqbrdf.estimate.optimise.kernels import KernelModel
 from freqbrdf.estimate.optimise.model import (estimate_light, forward, light_terms, loss_and_gradient,
                                               pair_source_geometry, point_terms)
@@ -125,6 +126,44 @@ def test_gradient_with_point_sources_matches_central_differences(method: str, mo
     assert np.abs(grad - without).max() > 1e-3  # the source contributes
     fd = central_differences(loss, x)
     np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-8)
+
+
+@pytest.mark.parametrize("method", ["freq", "freq_noshadow"])
+def test_texel_information_is_the_jacobians_curvature_by_central_differences(method: str) -> None:
+    """The posterior's per-texel J^T J and squared residual (one kernel pass, exact derivatives)
+    against a Jacobian of the model radiance by central differences, point sources included."""
+    capture, env, normal = one_pixel_scene(n_tex=9, n_views=12, seed=2)
+    shadowing, masking, _ = variant(method)
+    rng = np.random.default_rng(5)
+    radiance = rng.uniform(0.0, 2.0, capture["wo_local"].shape)
+    obs = Observations.from_arrays(radiance, capture["weight"], capture["wo_local"], capture["frame"],
+                                   np.arange(9), 3)
+    problem = build_problem(obs, lt.irradiance(env + 0.3, normal), "float64")
+    residual, sources = lt.extract_point_sources(env + 0.3, 3.0, 20.0)
+    x = rng.uniform(0.25, 0.9, (9, 5))
+    light = light_terms(x[:, 3], problem, shadowing, lt.light_quadrature(residual, 8))
+    table, view = tables(MODELS[2], method)
+    model = KernelModel(masking, table, view, point_terms(problem, sources, shadowing))
+    xp = x[problem.perm]  # the kernels' order: texels by pair count
+
+    def radiance_at(z: np.ndarray) -> np.ndarray:
+        out = np.empty((problem.n_pairs, 3))
+        kernels.l1_loss_gradient(z, light, problem.pair_data, model, out)
+        return out
+
+    curvature, squares = kernels.texel_information(xp, light, problem.pair_data, model)
+    slot = np.repeat(np.arange(9), np.diff(problem.start))
+    jacobian = np.empty((problem.n_pairs, 3, 5))
+    for q in range(5):
+        step = np.zeros_like(xp)
+        step[:, q] = 1e-6
+        jacobian[..., q] = (radiance_at(xp + step) - radiance_at(xp - step)) / 2e-6
+    expected = np.zeros((9, 5, 5))
+    np.add.at(expected, slot, np.einsum("ncq,ncr->nqr", jacobian, jacobian))
+    np.testing.assert_allclose(curvature, expected, rtol=1e-5, atol=1e-9 * np.abs(expected).max())
+    np.testing.assert_allclose(squares, np.bincount(slot, ((radiance_at(xp) - problem.radiance) ** 2).sum(axis=1)),
+                               rtol=1e-12)
+    assert np.abs(curvature[:, 3, 3]).min() > 0  # roughness moves every texel's radiance
 
 
 def test_pair_source_geometry_is_the_half_vectors_at_half_the_angle() -> None:

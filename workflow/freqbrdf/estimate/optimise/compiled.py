@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "tv_kernel", "adam_kernel"]
+__all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "tv_kernel", "adam_kernel", "information_kernel"]
 
 _TEXELS = 64  # texels per parallel iteration on average (one set of scratch arrays each)
 _TEXEL_WORK = 4  # a texel's own work (lobe, view basis, sources) in pairs' worth, for balancing blocks
@@ -464,6 +464,60 @@ def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always")
+def _jacobian_row(m, base, e_pi, r0_dielectric, work, c, dalpha):  # pragma: no cover - compiled
+    """Channel c's model radiance (`_model`) differentiated in the texel's base colour c, roughness
+    and metallic (the other base colours do not enter it); ``work`` of `_pair_terms` with slopes,
+    ``dalpha`` = d alpha / d roughness."""
+    j_base = (1.0 - m) * e_pi * work[4, c] + m * work[0, c]
+    j_r = ((r0_dielectric * (1.0 - m) + m * base) * work[2, c] + work[3, c]
+           + (1.0 - m) * base * e_pi * work[5, c]) * dalpha
+    j_m = -base * e_pi * work[4, c] + (base - r0_dielectric) * work[0, c]
+    return j_base, j_r, j_m
+
+
+@numba.njit(parallel=True, cache=True, fastmath=_FAST)
+def information_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+                       geo, src, info, squares):  # pragma: no cover - compiled
+    n_deg = light.shape[1]
+    n_tex = start.shape[0] - 1
+    bounds = _block_bounds(start, np.arange(n_tex))
+    for blk in numba.prange(bounds.shape[0] - 1):
+        f = np.empty(n_deg)
+        fd = np.empty(n_deg)
+        work = np.empty((6, 3))
+        shade = np.empty((src.shape[1], 6))
+        for s in range(bounds[blk], bounds[blk + 1]):
+            r = x[s, 3]
+            m = x[s, 4]
+            alpha = max(r * r, alpha_min)
+            # the model's own derivative: flat where alpha is clamped (the solvers' gradient takes
+            # 2 sqrt(alpha_min) there instead, so that a texel can leave the clamp)
+            dalpha = 2.0 * r if r * r > alpha_min else 0.0
+            _lobe(alpha, alpha_min, lobe, f, fd)
+            _source_shading(alpha, src, s, shade)
+            vi, vw, vd = _view_basis(alpha, alpha_min, view)
+            h = info[s]
+            h[:] = 0.0
+            total = 0.0
+            for n in range(start[s], start[s + 1]):
+                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade, True)
+                for c in range(3):
+                    res = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c) - radiance[n, c]
+                    total += res * res
+                    j_base, j_r, j_m = _jacobian_row(m, x[s, c], e_pi[s, c], r0_dielectric, work, c, dalpha)
+                    h[c, c] += j_base * j_base
+                    h[c, 3] += j_base * j_r
+                    h[c, 4] += j_base * j_m
+                    h[3, 3] += j_r * j_r
+                    h[3, 4] += j_r * j_m
+                    h[4, 4] += j_m * j_m
+            for q in range(5):
+                for q2 in range(q):
+                    h[q, q2] = h[q2, q]
+            squares[s] = total
+
+
+@numba.njit(cache=True, inline="always")
 def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
                  geo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, shade,
                  h, g):  # pragma: no cover - compiled
@@ -491,11 +545,7 @@ def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
             for c in range(3):
                 res = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c) - radiance[p, c]
                 cost += abs(res)
-                # Jacobian row of this residual: base_c, roughness, metallic (other bases 0)
-                j_base = (1.0 - m) * e_pi[s, c] * work[4, c] + m * work[0, c]
-                j_r = ((r0_dielectric * (1.0 - m) + m * x[s, c]) * work[2, c] + work[3, c]
-                       + (1.0 - m) * x[s, c] * e_pi[s, c] * work[5, c]) * dalpha
-                j_m = -x[s, c] * e_pi[s, c] * work[4, c] + (x[s, c] - r0_dielectric) * work[0, c]
+                j_base, j_r, j_m = _jacobian_row(m, x[s, c], e_pi[s, c], r0_dielectric, work, c, dalpha)
                 # the reweighted quadratic's own gradient: sign(res) above the floor, Huber below
                 w = data_scale / max(abs(res), floor)
                 g[c] += w * res * j_base

@@ -26,7 +26,7 @@ from freqbrdf.estimate.optimise import compiled, compiled_light
 from freqbrdf.sphere.brdf import ALPHA_MIN, R0_DIELECTRIC
 
 __all__ = ["PairData", "KernelModel", "LmStep", "degree_sums", "shadowing_factors", "basis_factors", "table_sums", "l1_loss_gradient",
-           "grid_search", "lm_sweep", "tv_loss_gradient", "adam_update"]
+           "grid_search", "lm_sweep", "tv_loss_gradient", "adam_update", "texel_information"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -304,6 +304,37 @@ def l1_loss_gradient(
     loss = np.empty(x.shape[0])
     compiled.l1_kernel(x, *_arguments(terms, pairs, model), grad, loss, np.empty((0, 3)) if out is None else out)
     return loss, grad
+
+
+def texel_information(
+    x: np.ndarray, terms: np.ndarray, pairs: PairData, model: KernelModel,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per texel, the Gauss-Newton curvature ``J^T J`` of its model radiance and its squared residual.
+
+    ``J`` is the exact derivative of the model of `l1_loss_gradient` over the texel's pairs and
+    channels, in base colour RGB, roughness and metallic (the same rows as the LM sweeps'), so one
+    pass over the pairs gives what a finite-difference Jacobian needs six passes and an
+    ``(N, 3, 5)`` array for.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Shape ``(S, 5)``, float64: parameters of the S observed texels.
+    terms, pairs, model
+        As for `l1_loss_gradient`.
+
+    Returns
+    -------
+    curvature : numpy.ndarray
+        Shape ``(S, 5, 5)``, float64, symmetric: ``sum_{n, c} J_nc^T J_nc`` per texel.
+    squares : numpy.ndarray
+        Shape ``(S,)``, float64: ``sum_{n, c} (B - B_obs)^2`` per texel.
+    """
+    info = np.empty((x.shape[0], 5, 5))
+    squares = np.empty(x.shape[0])
+    compiled.information_kernel(np.ascontiguousarray(x, dtype=np.float64), *_arguments(terms, pairs, model), info,
+                                squares)
+    return info, squares
 
 
 def grid_search(

@@ -27,7 +27,7 @@ from freqbrdf.estimate.optimise.settings import N_PARAMS
 from freqbrdf.sphere.brdf import TEXTURES
 
 __all__ = ["PRIOR_PRECISION", "prior_variance", "model_jacobian", "pair_information", "residual_variance",
-           "pooled_residual_variance", "laplace_variance", "expected_error", "expected_error_atlas"]
+           "pooled_residual_variance", "laplace_variance", "posterior_variance", "expected_error", "expected_error_atlas"]
 
 PRIOR_PRECISION = 12.0  # 1 / variance of a uniform on [0, 1]
 _STEP = 1e-4  # finite-difference step of the Jacobian (parameters in [0, 1])
@@ -121,8 +121,12 @@ def residual_variance(residual: np.ndarray, slot: np.ndarray, n_slots: int) -> n
         Shape ``(n_slots,)``: at least 1 degree of freedom is assumed, and the variance is at least 1e-12.
     """
     squares = np.bincount(slot, (np.asarray(residual, dtype=np.float64) ** 2).sum(axis=1), minlength=n_slots)
-    dof = np.maximum(_degrees_of_freedom(np.bincount(slot, minlength=n_slots)), 1)
-    return np.maximum(squares / dof, 1e-12)
+    return _variance_left(squares, np.bincount(slot, minlength=n_slots))
+
+
+def _variance_left(squares: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """``squares / (3 n - 5)`` per texel of n ``pairs``, at least 1 degree of freedom and at least 1e-12."""
+    return np.maximum(squares / np.maximum(_degrees_of_freedom(pairs), 1), 1e-12)
 
 
 def pooled_residual_variance(residual: np.ndarray, slot: np.ndarray) -> float:
@@ -158,15 +162,44 @@ def laplace_variance(radiance, xp: np.ndarray, observed: np.ndarray, start: np.n
     numpy.ndarray
         Shape ``(T_obs, 5)``, float64: variances of base R, G, B, roughness, metallic.
     """
-    if not (np.isfinite(variance_scale) and variance_scale > 0):
-        raise ValueError(f"variance_scale must be a finite number > 0, got {variance_scale!r}")
+    _check_scale(variance_scale)
     model, jacobian = model_jacobian(radiance, xp, start)
     n_obs = start.shape[0] - 1
-    s2 = residual_variance(model - np.asarray(observed, dtype=np.float64),
-                           np.repeat(np.arange(n_obs), np.diff(start)), n_obs)
-    curvature = _texel_information(jacobian, start)
-    precision = curvature / s2[:, None, None] + PRIOR_PRECISION * np.eye(N_PARAMS)
+    squares = np.bincount(np.repeat(np.arange(n_obs), np.diff(start)),
+                          ((model - np.asarray(observed, dtype=np.float64)) ** 2).sum(axis=1), minlength=n_obs)
+    return posterior_variance(_texel_information(jacobian, start), squares, np.diff(start), variance_scale)
+
+
+def posterior_variance(curvature: np.ndarray, squares: np.ndarray, pairs: np.ndarray,
+                       variance_scale: float = 1.0) -> np.ndarray:
+    """The Laplace posterior's variances (module docstring) from each texel's misfit.
+
+    Parameters
+    ----------
+    curvature : numpy.ndarray
+        Shape ``(T, 5, 5)``: ``J^T J`` of each texel's model radiance over its pairs and channels
+        (`freqbrdf.estimate.optimise.kernels.texel_information`, or `pair_information` summed).
+    squares : numpy.ndarray
+        Shape ``(T,)``: each texel's squared residual summed over its pairs and channels.
+    pairs : numpy.ndarray
+        Shape ``(T,)``, int: each texel's observed pairs.
+    variance_scale : float
+        Factor on every variance (> 0).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(T, 5)``, float64: variances of base R, G, B, roughness, metallic.
+    """
+    _check_scale(variance_scale)
+    s2 = _variance_left(np.asarray(squares, dtype=np.float64), np.asarray(pairs))
+    precision = np.asarray(curvature, dtype=np.float64) / s2[:, None, None] + PRIOR_PRECISION * np.eye(N_PARAMS)
     return variance_scale * np.diagonal(np.linalg.inv(precision), axis1=1, axis2=2).copy()
+
+
+def _check_scale(variance_scale: float) -> None:
+    if not (np.isfinite(variance_scale) and variance_scale > 0):
+        raise ValueError(f"variance_scale must be a finite number > 0, got {variance_scale!r}")
 
 
 def expected_error(variance: np.ndarray) -> np.ndarray:

@@ -15,9 +15,9 @@ import numpy as np
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature
 from freqbrdf.estimate.light_table import ShadowedLightTable, read_light_table
-from freqbrdf.estimate.optimise.kernels import LmStep, adam_update, lm_sweep
+from freqbrdf.estimate.optimise.kernels import LmStep, adam_update, lm_sweep, texel_information
 from freqbrdf.estimate.optimise.model import ForwardModel, estimate_light
-from freqbrdf.estimate.optimise.posterior import laplace_variance, prior_variance
+from freqbrdf.estimate.optimise.posterior import posterior_variance, prior_variance
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params, unpack_params
 from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings, method_terms
 from freqbrdf.methods import get_method
@@ -134,7 +134,8 @@ def optimise(
         first, Adam returns its iterate of lowest objective instead of the
         last; an LM run that meets ``sweep_tolerance`` early has fewer
         entries than ``sweeps``. ``std``: the posterior's standard deviations
-        (:func:`freqbrdf.estimate.optimise.posterior.laplace_variance`) at the
+        (:func:`freqbrdf.estimate.optimise.posterior.posterior_variance`, with the exact
+        Jacobian of `freqbrdf.estimate.optimise.kernels.texel_information`) at the
         last light terms.
     """
     method_terms(method)  # a bad method is named before any work
@@ -146,8 +147,9 @@ def optimise(
     descend = _descend_lm if settings.solver == "lm" else _descend
     xp, curve, terms = descend(xp, model, settings)
     variance = np.full_like(xp, prior_variance(settings.variance_scale))  # what no view observes keeps the prior
-    variance[: problem.n_observed] = laplace_variance(lambda z: model.radiance(z, terms), xp, problem.radiance,
-                                                      problem.start, settings.variance_scale)
+    curvature, squares = texel_information(xp[: problem.n_observed], terms, problem.pair_data, model.kernel)
+    variance[: problem.n_observed] = posterior_variance(curvature, squares, np.diff(problem.start),
+                                                        settings.variance_scale)
     x, std = np.empty_like(xp), np.empty_like(xp)
     x[problem.perm], std[problem.perm] = xp, np.sqrt(variance)
     return Fit(unpack_params(x), curve, unpack_params(std))
