@@ -15,7 +15,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "tv_kernel", "adam_kernel", "information_kernel"]
+__all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "tv_kernel", "adam_kernel", "information_kernel",
+           "source_geometry_kernel"]
 
 _TEXELS = 64  # texels per parallel iteration on average (one set of scratch arrays each)
 _TEXEL_WORK = 4  # a texel's own work (lobe, view basis, sources) in pairs' worth, for balancing blocks
@@ -681,3 +682,21 @@ def adam_kernel(x, grad, m1, m2, lr, c1, c2, b1, b2, eps, floor):  # pragma: no 
             m2[i, q] = b
             v = min(max(x[i, q] - lr * (a / c1) / (np.sqrt(b / c2) + eps), 0.0), 1.0)
             x[i, q] = max(v, floor[q])
+
+
+@numba.njit(parallel=True, cache=True)
+def source_geometry_kernel(wo, incoming, slot, out):  # pragma: no cover - compiled
+    for n in numba.prange(wo.shape[0]):
+        t = slot[n]
+        for j in range(incoming.shape[1]):
+            h0 = incoming[t, j, 0] + wo[n, 0]
+            h1 = incoming[t, j, 1] + wo[n, 1]
+            h2 = incoming[t, j, 2] + wo[n, 2]
+            norm2 = h0 * h0 + h1 * h1 + h2 * h2
+            lit = incoming[t, j, 2] > 0.0 and wo[n, 2] > 0.0 and norm2 > 0.0
+            if not lit:
+                norm2 = 1.0
+            c = min(max((h0 * wo[n, 0] + h1 * wo[n, 1] + h2 * wo[n, 2]) / np.sqrt(norm2), 0.0), 1.0)
+            out[n, j, 0] = (h0 * h0 + h1 * h1) / norm2
+            out[n, j, 1] = (1.0 - c) ** 5
+            out[n, j, 2] = 0.25 / wo[n, 2] if lit else 0.0

@@ -26,7 +26,8 @@ from freqbrdf.estimate.optimise import compiled, compiled_light
 from freqbrdf.sphere.brdf import ALPHA_MIN, R0_DIELECTRIC
 
 __all__ = ["PairData", "KernelModel", "LmStep", "degree_sums", "shadowing_factors", "basis_factors", "table_sums", "l1_loss_gradient",
-           "grid_search", "lm_sweep", "tv_loss_gradient", "adam_update", "texel_information"]
+           "grid_search", "lm_sweep", "tv_loss_gradient", "adam_update", "texel_information",
+           "source_geometry"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -479,3 +480,12 @@ def adam_update(
     b1, b2 = betas
     compiled.adam_kernel(x, grad, m1, m2, float(lr), 1.0 - b1**step, 1.0 - b2**step, float(b1), float(b2),
                          float(eps), floor)
+
+
+def source_geometry(wo: np.ndarray, incoming: np.ndarray, slot: np.ndarray, out: np.ndarray) -> None:
+    """`freqbrdf.estimate.optimise.model.pair_source_geometry` into ``out`` (N, S, 3), float32 or
+    float64: the half vector's ``sin^2 theta_h``, Schlick's ``(1 - h.wo)^5`` and ``1 / (4 cos theta_o)``
+    (0 where the source or the view is below the horizon) of every pair and source, in one pass
+    instead of NumPy's temporaries per source; ``wo`` (N, 3), ``incoming`` (T, S, 3)
+    float64 and ``slot`` (N,) int64, C-contiguous, checked by the caller."""
+    compiled.source_geometry_kernel(wo, incoming, slot, out)

@@ -12,7 +12,8 @@ import numpy as np
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature, PointSources, extract_point_sources, irradiance, light_quadrature, shadowed_light
 from freqbrdf.estimate.light_table import ShadowedLightTable, shadowed_light_table
-from freqbrdf.estimate.optimise.kernels import KernelModel, degree_sums, grid_search, l1_loss_gradient, table_sums
+from freqbrdf.estimate.optimise.kernels import (KernelModel, degree_sums, grid_search, l1_loss_gradient,
+                                                source_geometry, table_sums)
 from freqbrdf.estimate.optimise.problem import Problem, check_params
 from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings, method_terms
 from freqbrdf.methods import get_method
@@ -97,17 +98,16 @@ def pair_source_geometry(wo: np.ndarray, incoming: np.ndarray, slot: np.ndarray,
         ``1 / (4 cos theta_o)``; the last is 0 where the source or the view is below the
         horizon, which drops the term.
     """
-    wo, incoming = np.asarray(wo, dtype=np.float64), np.asarray(incoming, dtype=np.float64)
-    out = np.zeros((wo.shape[0], incoming.shape[1], 3), dtype=dtype)
-    for j in range(out.shape[1]):  # one source at a time: (N, 3) temporaries, not (N, S, 3)
-        wi = incoming[slot, j]
-        h = wi + wo
-        norm2 = np.einsum("ni,ni->n", h, h)
-        lit = (wi[:, 2] > 0) & (wo[:, 2] > 0) & (norm2 > 0)
-        norm2 = np.where(lit, norm2, 1.0)
-        out[:, j, 0] = (h[:, 0] ** 2 + h[:, 1] ** 2) / norm2
-        out[:, j, 1] = (1.0 - np.clip(np.einsum("ni,ni->n", h, wo) / np.sqrt(norm2), 0.0, 1.0)) ** 5
-        out[:, j, 2] = np.where(lit, 0.25 / np.where(lit, wo[:, 2], 1.0), 0.0)
+    wo = np.ascontiguousarray(wo, dtype=np.float64)
+    incoming = np.ascontiguousarray(incoming, dtype=np.float64)
+    slot = np.ascontiguousarray(slot, dtype=np.int64)
+    if wo.ndim != 2 or wo.shape[1] != 3 or incoming.ndim != 3 or incoming.shape[2] != 3 or slot.shape != wo.shape[:1]:
+        raise ValueError(f"pair_source_geometry needs wo (N, 3), incoming (T, S, 3) and slot (N,), got shapes "
+                         f"{wo.shape}, {incoming.shape} and {slot.shape}")
+    if slot.size and (slot.min() < 0 or slot.max() >= incoming.shape[0]):
+        raise ValueError(f"slot must index the {incoming.shape[0]} texels of incoming, got {slot.min()}..{slot.max()}")
+    out = np.empty((wo.shape[0], incoming.shape[1], 3), dtype=dtype)
+    source_geometry(wo, incoming, slot, out)
     return out
 
 
