@@ -254,3 +254,18 @@ def test_albedo_inputs_are_checked() -> None:
         principled_diffuse_albedo(np.array([1.5]), np.array([0.5]))
     # a Lambertian-like limit: at normal view and roughness 0, 1 - 1/42 (the (1 - F_i / 2) factor alone)
     np.testing.assert_allclose(principled_diffuse_albedo(np.array([0.0]), np.array([1.0])), 1 - 1 / 42, rtol=1e-12)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 64, 2048])
+def test_gauss_legendre_rule_integrates_polynomials_to_degree_2n_minus_1(n: int) -> None:
+    from scipy.special import roots_legendre
+
+    from freqbrdf.sphere.lobes import _gauss_legendre
+
+    x, w = _gauss_legendre(n)
+    np.testing.assert_allclose(x, roots_legendre(n)[0], rtol=0, atol=4e-16)
+    for k in sorted({0, min(1, n - 1), n // 2, n - 1}):  # x^(2k) up to degree 2n - 2, exact: 2 / (2k + 1)
+        assert (w * x ** (2 * k)).sum() == pytest.approx(2.0 / (2 * k + 1), rel=1e-12)
+    if n == 2:
+        np.testing.assert_allclose(x, [-1 / np.sqrt(3), 1 / np.sqrt(3)], rtol=1e-15)
+        np.testing.assert_allclose(w, [1.0, 1.0], rtol=1e-15)
