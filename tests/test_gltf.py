@@ -197,6 +197,16 @@ def test_viewer_page_inlines_everything(textures, sphere):
     np.testing.assert_array_equal(posterior_overlay(np.array([[0.01]])), overlay_image(np.array([[0.4]])))
 
 
+def test_the_viewer_opens_under_the_captures_own_light():
+    from freqbrdf.export.viewer import capture_light_first
+
+    envs = {"sky": b"1", "lobby": b"2", "city": b"3"}
+    assert list(capture_light_first(envs, "lobby")) == ["lobby", "sky", "city"]
+    assert capture_light_first(envs, "lobby")["lobby"] == b"2"
+    assert list(capture_light_first(envs, "sky")) == ["sky", "lobby", "city"]
+    assert list(capture_light_first(envs, "forest")) == ["sky", "lobby", "city"]  # a real capture's own light
+
+
 def test_the_viewer_credits_each_third_party_asset_once_with_its_licence(textures, sphere):
     from freqbrdf.export.viewer import asset_credits
 

@@ -10,7 +10,8 @@ from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.export.gltf import read_glb
 from freqbrdf.util.io import atomic_path, read_json
 from freqbrdf.util.logs import run_script
-from freqbrdf.export.viewer import ENTROPY, Panel, asset_credits, overlay_image, posterior_overlay, same_mesh, viewer_html
+from freqbrdf.export.viewer import (ENTROPY, Panel, asset_credits, capture_light_first, overlay_image,
+                                   posterior_overlay, same_mesh, viewer_html)
 
 
 def main(smk, log):
@@ -29,7 +30,8 @@ def main(smk, log):
     # The page opens on the capture's first view; the panels are square, so the
     # vertical field of view of that view is kept.
     fov_deg = float(np.degrees(2.0 * np.arctan(0.5 * cameras.height / cameras.K[0, 1, 1])))
-    envs = {name: Path(path).read_bytes() for name, path in zip(smk.params.envs, smk.input.envs, strict=True)}
+    envs = capture_light_first({name: Path(path).read_bytes()
+                                for name, path in zip(smk.params.envs, smk.input.envs, strict=True)}, smk.wildcards.env)
     credits = asset_credits([read_json(path) for path in smk.input.sources])
     overlays = {ENTROPY: overlay_image(read_entropy(smk.input.entropy).atlas)}
     for method, estimate in zip(smk.params.posteriors, smk.input.posteriors, strict=True):

@@ -29,7 +29,7 @@ import numpy as np
 from freqbrdf.export.gltf import GltfMaterial, encode_png, glb_bytes
 from freqbrdf.scene.meshes import Mesh
 
-__all__ = ["WEB_DIR", "WEB_ASSETS", "THREE_VERSION", "ENTROPY", "POSTERIOR_RMS_MAX", "Panel", "overlay_image",
+__all__ = ["WEB_DIR", "WEB_ASSETS", "THREE_VERSION", "ENTROPY", "POSTERIOR_RMS_MAX", "Panel", "capture_light_first", "overlay_image",
            "posterior_overlay", "same_mesh", "viewer_html"]
 
 WEB_DIR = Path(__file__).parent / "web"
@@ -113,6 +113,12 @@ def asset_credits(records: Sequence[Mapping]) -> list[str]:
 
 def _escape(text: str) -> str:
     return text.replace("&", "&amp;").replace("<", "&lt;")
+
+
+def capture_light_first(envs: Mapping[str, bytes], env: str) -> dict[str, bytes]:
+    """``envs`` with the capture's own environment ``env`` first (the page opens under the first),
+    the others in their order; unchanged if ``env`` is not among them (a real capture's own light)."""
+    return {name: envs[name] for name in sorted(envs, key=lambda name: name != env)}
 
 
 def viewer_html(title: str, mesh: Mesh, materials: Sequence[GltfMaterial], panels: Sequence[Panel],
