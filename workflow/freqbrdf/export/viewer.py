@@ -29,8 +29,8 @@ import numpy as np
 from freqbrdf.export.gltf import GltfMaterial, encode_png, glb_bytes
 from freqbrdf.scene.meshes import Mesh
 
-__all__ = ["WEB_DIR", "WEB_ASSETS", "THREE_VERSION", "ENTROPY", "POSTERIOR_RMS_MAX", "Panel", "capture_light_first", "overlay_image",
-           "posterior_overlay", "same_mesh", "viewer_html"]
+__all__ = ["WEB_DIR", "WEB_ASSETS", "THREE_VERSION", "ENTROPY", "POSTERIOR_RMS_MAX", "Panel", "capture_light_first",
+           "overlay_image", "posterior_overlay", "same_mesh", "viewer_html"]
 
 WEB_DIR = Path(__file__).parent / "web"
 WEB_ASSETS = ("viewer.html", "viewer.js", "vendor/three.bundle.min.js")

@@ -611,7 +611,6 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
               geo, src, nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
               cost_out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
-    n = texels.shape[0]
     bounds = _block_bounds(start, texels)
     for blk in numba.prange(bounds.shape[0] - 1):
         f = np.empty(n_deg)
