@@ -21,12 +21,16 @@ from pathlib import Path
 class DevTools:
     """A headless Chromium and one page in it, driven over ``--remote-debugging-pipe``."""
 
-    def __init__(self, chromium: str, size: tuple[int, int]) -> None:
+    def __init__(self, chromium: str, size: tuple[int, int], webgl: bool = True) -> None:
+        """``webgl``: whether the page draws with WebGL (the viewer). WebGL needs SwiftShader where
+        there is no GPU (Chromium asks for the opt-in flag), and compositing through it makes each
+        screenshot of a large window take seconds; a page without WebGL (the report) is drawn in
+        software, ``--disable-gpu``, in a fraction of that."""
         to_browser_r, self._to_browser = os.pipe()
         self._from_browser, from_browser_w = os.pipe()
-        # WebGL needs SwiftShader where there is no GPU; Chromium asks for the opt-in flag.
+        graphics = ["--enable-unsafe-swiftshader", "--use-angle=swiftshader"] if webgl else ["--disable-gpu"]
         command = [chromium, "--headless", "--no-sandbox", "--disable-dev-shm-usage", "--hide-scrollbars",
-                   "--no-first-run", "--mute-audio", "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
+                   "--no-first-run", "--mute-audio", *graphics,
                    f"--window-size={size[0]},{size[1]}", "--remote-debugging-pipe", "about:blank"]
 
         def pipe_ends_at_3_and_4() -> None:

@@ -137,7 +137,7 @@ def screenshot(chromium: str, page: Path, out: Path, size: tuple[int, int], suff
 
     Raises RuntimeError when the view is not shown within ``timeout_s``.
     """
-    browser = DevTools(chromium, size)
+    browser = DevTools(chromium, size, webgl=False)  # the report's pages draw no WebGL
     try:
         browser.call("Page.navigate", session=True, url=page.resolve().as_uri())
         if not browser.wait_for(shown_expression(suffix), timeout_s):

@@ -847,9 +847,15 @@ def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def stress(repo, tmp_path_factory):
-    """The stress page of tests/stress_tiny.yaml (four of config/stress.yaml's captures, tiny sizes)."""
-    workdir = tmp_path_factory.mktemp("stress")
+def stress(repo, run, tmp_path_factory):
+    """The stress page of tests/stress_tiny.yaml (four of config/stress.yaml's captures, tiny sizes),
+    run on a copy of the tiny run: the benchmark capture (sphere/studio) and its re-imported copy are
+    the same jobs on the same inputs in both, so Snakemake runs only what the stress captures add and
+    what reads them (the metrics, tables and the relighting, whose environments differ)."""
+    import shutil
+
+    workdir = tmp_path_factory.mktemp("stress") / "run"
+    shutil.copytree(run, workdir, symlinks=True)
     snakemake(repo, workdir, "results/tables/stress.md", "results/figures/stress.png", "results/tables/tables.md",
               extra_config=[repo / "tests" / "stress_tiny.yaml"])
     return workdir

@@ -27,7 +27,6 @@ from collections.abc import Hashable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 __all__ = ["Interval", "IntervalSettings", "VERDICTS", "all_hold", "cluster_means", "judge", "mean_interval"]
 
@@ -132,6 +131,10 @@ def mean_interval(values: Sequence[float], groups: Sequence[Hashable], settings:
     n, value = len(means), float(means.mean())
     if n < 2:
         return Interval(value, float("nan"), float("nan"), n, int(keep.sum()))
+    # Imported here, not at the top: the Snakefile imports this module (through the stress and
+    # report rules), and scipy.stats took most of a second of every Snakemake start-up.
+    from scipy import stats
+
     half = stats.t.ppf(0.5 + settings.level / 2.0, n - 1) * means.std(ddof=1) / np.sqrt(n)
     return Interval(value, float(value - half), float(value + half), n, int(keep.sum()))
 
