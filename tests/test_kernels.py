@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from freqbrdf.estimate.optimise import compiled, compiled_light, kernels
+from freqbrdf.estimate.optimise import compiled, compiled_light, compiled_steps, kernels
 from freqbrdf.sphere.sh import real_sh, recurrence_tables, sh_degrees
 
 
@@ -40,7 +40,7 @@ def test_small_cholesky_solve_matches_numpy() -> None:
 def test_the_light_kernels_compile_with_the_model_kernels_settings() -> None:
     # each file keeps its own copy: numba's cache would not see a change to the other file's
     assert compiled_light._FAST == compiled._FAST
-    assert compiled_light._TEXELS == compiled._TEXELS
+    assert compiled_light._TEXELS == compiled_steps._TEXELS  # the model's blocks (`compiled_steps.block_bounds`)
 
 
 def test_the_model_kernels_see_one_type_of_view_table_whether_empty_or_tabled() -> None:
@@ -70,7 +70,7 @@ def test_every_compiled_helper_fixes_its_own_fast_math_flags() -> None:
     from freqbrdf.studies import expected_entropy
 
     helpers = {f"{module.__name__}.{name}": value.targetoptions
-               for module in (compiled, compiled_light, capture_kernels, expected_entropy)
+               for module in (compiled, compiled_light, compiled_steps, capture_kernels, expected_entropy)
                for name, value in vars(module).items()
                if hasattr(value, "targetoptions") and name not in module.__all__  # kernels: called from Python
                and not value.targetoptions.get("parallel") and value.targetoptions.get("inline", "never") == "never"}
@@ -116,3 +116,19 @@ def test_adam_update_is_the_numpy_adam_step_bit_for_bit_then_floored() -> None:
     assert x[:, 3].min() == 0.05 and x.max() <= 1.0
     with pytest.raises(ValueError, match=r"adam_update: m2 must be C-contiguous float64 of shape \(300, 5\)"):
         kernels.adam_update(x, grad, m1, m2[:, :4], 1, 0.05, (0.9, 0.999), 1e-8, floor)
+
+
+def test_the_model_kernels_blocks_are_contiguous_and_split_the_work_evenly_between_threads() -> None:
+    """Texels sorted by pair count, most first, as a problem stores them: equal texel counts per block
+    would give the first half of the blocks (one thread's share) most of the pairs."""
+    counts = np.sort(np.random.default_rng(5).integers(1, 16, 5000))[::-1]
+    start = np.concatenate([[0], np.cumsum(counts)])
+    for texels in (np.arange(5000), np.arange(0, 5000, 2)):  # every texel, one checkerboard colour
+        bounds = compiled_steps.block_bounds(start, texels)
+        assert bounds[0] == 0 and bounds[-1] == texels.size and np.all(np.diff(bounds) >= 0)
+        assert len(bounds) - 1 == -(-texels.size // compiled_steps._TEXELS)
+        cum = np.concatenate([[0], np.cumsum(counts[texels] + compiled_steps._TEXEL_WORK)])
+        half = (len(bounds) - 1) // 2
+        first, second = cum[bounds[half]], cum[-1] - cum[bounds[half]]
+        assert abs(first - second) <= 1.5 * cum[-1] / (len(bounds) - 1)  # within a block's share (an odd count)
+        assert cum[texels.size // 2] / cum[-1] > 0.6  # what equal texel counts would have given the first thread

@@ -1,6 +1,8 @@
 """Compiled (numba) inner loops of the gradient-descent estimator's model (its objective, grid
 start and LM sweeps), called through `freqbrdf.estimate.optimise.kernels`, which checks their
-arguments and documents them; the light's are in `freqbrdf.estimate.optimise.compiled_light`.
+arguments and documents them; the light's are in `freqbrdf.estimate.optimise.compiled_light`, the
+loops that share nothing with the model (TV, Adam's update, the sources' geometry) in
+`freqbrdf.estimate.optimise.compiled_steps`.
 
 Kept in one file on purpose: numba's on-disk cache (``cache=True``) is invalidated by
 the defining file's modification only, so a kernel inlining a helper (or reading a constant)
@@ -15,11 +17,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "tv_kernel", "adam_kernel", "information_kernel",
-           "source_geometry_kernel"]
+__all__ = ["l1_kernel", "grid_kernel", "lm_kernel", "information_kernel"]
 
-_TEXELS = 64  # texels per parallel iteration on average (one set of scratch arrays each)
-_TEXEL_WORK = 4  # a texel's own work (lobe, view basis, sources) in pairs' worth, for balancing blocks
 # Levenberg-Marquardt damping: x 1/3 after a kept step, x 4 after a rejected one, within [1e-6, 1e6]
 _LM_DOWN, _LM_UP, _LM_MIN, _LM_MAX = 1.0 / 3.0, 4.0, 1e-6, 1e6
 # Fast math without "reassoc", "nnan" and "ninf" (the Cholesky's positive-pivot test must
@@ -33,37 +32,6 @@ _FAST_LM = _FAST - {"contract"}
 # The helpers that are neither inlined nor kernels (`_hermite`, `_view_basis`) fix their own
 # flags: numba would compile them once, with the flags of whichever kernel calls them first
 # (l1_kernel's fast math or grid_kernel's none), and a kernel's numbers then hung on that order.
-
-
-@numba.njit(cache=True, inline="always")
-def _block_bounds(start, texels):  # pragma: no cover - compiled
-    """Contiguous blocks of ``texels`` (rows of ``start``) with about equal work each, about
-    ``_TEXELS`` texels on average: block b takes ``texels[bounds[b]:bounds[b + 1]]``.
-
-    A texel's work is its pairs (none past the observed texels) plus ``_TEXEL_WORK``, the per-texel
-    part (lobe, view basis, sources) in pairs' worth. The texels are sorted by pair count (most
-    first) and numba splits a parallel loop into one run of iterations per thread, so blocks of
-    equal texel counts gave the first thread 73% of the pairs; contiguous, because every pair
-    a block reads then follows the last one in memory (texels taken strided, for balance, cost a
-    single thread 40% more time).
-    """
-    n = texels.shape[0]
-    n_obs = start.shape[0] - 1
-    cum = np.empty(n + 1, np.int64)
-    cum[0] = 0
-    for i in range(n):
-        t = texels[i]
-        cum[i + 1] = cum[i] + _TEXEL_WORK + (start[t + 1] - start[t] if t < n_obs else 0)
-    n_blk = max((n + _TEXELS - 1) // _TEXELS, 1)
-    bounds = np.empty(n_blk + 1, np.int64)
-    i = 0
-    for b in range(n_blk):
-        target = (cum[n] * b) // n_blk
-        while cum[i] < target:
-            i += 1
-        bounds[b] = i
-    bounds[n_blk] = n
-    return bounds
 
 
 @numba.njit(cache=True, fastmath=False)  # not inlined: numba's parfor array analysis fails on its tuples
@@ -305,13 +273,11 @@ def _colour_gradient(m, x, s, e_pi, r0_dielectric, diffuse, rise, c, grad):  # p
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST)
 def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, geo,
-              src, grad, loss, model):  # pragma: no cover - compiled
+              src, bounds, grad, loss, model):  # pragma: no cover - compiled
     n_deg = light.shape[1]
-    n_tex = start.shape[0] - 1
     write_model = model.shape[0] > 0
-    # blocks of texels, so that the scratch arrays are allocated once per block, not per texel;
-    # of equal work (`_block_bounds`), so that each thread's share holds as many pairs as the other's
-    bounds = _block_bounds(start, np.arange(n_tex))
+    # blocks of texels (``bounds``: `freqbrdf.estimate.optimise.compiled_steps.block_bounds`), so that
+    # the scratch arrays are allocated once per block, and each thread's share holds as many pairs
     for blk in numba.prange(bounds.shape[0] - 1):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
@@ -355,10 +321,8 @@ def l1_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min
 
 @numba.njit(parallel=True, cache=True)
 def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view, geo, src,
-                r_grid, m_grid, max_pairs, out):  # pragma: no cover - compiled
+                bounds, r_grid, m_grid, max_pairs, out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
-    n_tex = start.shape[0] - 1
-    bounds = _block_bounds(start, np.arange(n_tex))
     for blk in numba.prange(bounds.shape[0] - 1):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
@@ -410,31 +374,6 @@ def grid_kernel(start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
 
 
 @numba.njit(cache=True, inline="always")
-def _texel_cost(xs, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
-                geo, src, nb_start, nb, x, data_scale, tv_scale, f, fd, work, shade):  # pragma: no cover - compiled
-    """Objective of texel s at parameters ``xs`` (5,): its L1 data term times ``data_scale`` plus
-    ``tv_scale`` times the TV of its edges, the neighbours held at ``x`` (S, 5); ``f``, ``fd``
-    (L,), ``work`` (6, 3) and ``shade`` (P, 6) are scratch."""
-    cost = 0.0
-    if s < start.shape[0] - 1:
-        alpha = max(xs[3] * xs[3], alpha_min)
-        _lobe(alpha, alpha_min, lobe, f, fd)
-        _source_shading(alpha, src, s, shade)
-        vi, vw, vd = _view_basis(alpha, alpha_min, view)
-        m = xs[4]
-        for n in range(start[s], start[s + 1]):
-            _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade, False)
-            for c in range(3):
-                cost += abs(_model(m, xs[c], e_pi[s, c], r0_dielectric, work, c) - radiance[n, c])
-        cost *= data_scale
-    for k in range(nb_start[s], nb_start[s + 1]):
-        j = nb[k]
-        for q in range(5):
-            cost += tv_scale * abs(xs[q] - x[j, q])
-    return cost
-
-
-@numba.njit(cache=True, inline="always")
 def _solve_spd5(a, rhs, out):  # pragma: no cover - compiled
     """Solve ``a out = rhs`` for a symmetric positive definite 5x5 ``a`` (Cholesky, in place on ``a``);
     False if a pivot is not positive."""
@@ -476,54 +415,52 @@ def _jacobian_row(m, base, e_pi, r0_dielectric, work, c, dalpha):  # pragma: no 
     return j_base, j_r, j_m
 
 
-@numba.njit(parallel=True, cache=True, fastmath=_FAST)
-def information_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
-                       geo, src, info, squares):  # pragma: no cover - compiled
-    n_deg = light.shape[1]
-    n_tex = start.shape[0] - 1
-    bounds = _block_bounds(start, np.arange(n_tex))
-    for blk in numba.prange(bounds.shape[0] - 1):
-        f = np.empty(n_deg)
-        fd = np.empty(n_deg)
-        work = np.empty((6, 3))
-        shade = np.empty((src.shape[1], 6))
-        for s in range(bounds[blk], bounds[blk + 1]):
-            r = x[s, 3]
-            m = x[s, 4]
-            alpha = max(r * r, alpha_min)
-            # the model's own derivative: flat where alpha is clamped (the solvers' gradient takes
-            # 2 sqrt(alpha_min) there instead, so that a texel can leave the clamp)
-            dalpha = 2.0 * r if r * r > alpha_min else 0.0
-            _lobe(alpha, alpha_min, lobe, f, fd)
-            _source_shading(alpha, src, s, shade)
-            vi, vw, vd = _view_basis(alpha, alpha_min, view)
-            h = info[s]
-            h[:] = 0.0
-            total = 0.0
-            for n in range(start[s], start[s + 1]):
-                _pair_terms(alpha, f, fd, light, n, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade, True)
-                for c in range(3):
-                    res = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c) - radiance[n, c]
-                    total += res * res
-                    j_base, j_r, j_m = _jacobian_row(m, x[s, c], e_pi[s, c], r0_dielectric, work, c, dalpha)
-                    h[c, c] += j_base * j_base
-                    h[c, 3] += j_base * j_r
-                    h[c, 4] += j_base * j_m
-                    h[3, 3] += j_r * j_r
-                    h[3, 4] += j_r * j_m
-                    h[4, 4] += j_m * j_m
-            for q in range(5):
-                for q2 in range(q):
-                    h[q, q2] = h[q2, q]
-            squares[s] = total
+@numba.njit(cache=True, inline="always")
+def _add_outer(h, c, w, j_base, j_r, j_m):  # pragma: no cover - compiled
+    """Add ``w`` times the outer product of a Jacobian row (`_jacobian_row`, channel c) to the upper
+    triangle of ``h`` (5, 5)."""
+    h[c, c] += w * j_base * j_base
+    h[c, 3] += w * j_base * j_r
+    h[c, 4] += w * j_base * j_m
+    h[3, 3] += w * j_r * j_r
+    h[3, 4] += w * j_r * j_m
+    h[4, 4] += w * j_m * j_m
 
 
 @numba.njit(cache=True, inline="always")
-def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
-                 geo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, shade,
-                 h, g):  # pragma: no cover - compiled
-    """Texel s's objective at ``x[s]``, and in ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton
-    matrix and gradient of its reweighted quadratic (see `lm_sweep`); the rest is scratch."""
+def _mirror_upper(h):  # pragma: no cover - compiled
+    """Copy the upper triangle of the square ``h`` onto its lower one."""
+    for q in range(h.shape[0]):
+        for q2 in range(q):
+            h[q, q2] = h[q2, q]
+
+
+@numba.njit(parallel=True, cache=True, fastmath=_FAST)
+def information_kernel(x, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
+                       geo, src, bounds, info, squares):  # pragma: no cover - compiled
+    no_edges = np.zeros(x.shape[0] + 1, np.int64)  # the posterior's curvature is the data term's alone
+    for blk in numba.prange(bounds.shape[0] - 1):
+        f = np.empty(light.shape[1])
+        fd = np.empty(light.shape[1])
+        work = np.empty((6, 3))
+        shade = np.empty((src.shape[1], 6))
+        g = np.empty(5)
+        for s in range(bounds[blk], bounds[blk + 1]):
+            squares[s] = _irls_system(x[s], x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
+                                      r0_dielectric, lobe, view, geo, src, no_edges, no_edges, 1.0, 0.0, 0.0, 0.0, f,
+                                      fd, work, shade, info[s], g, True)
+
+
+@numba.njit(cache=True, inline="always")
+def _irls_system(xs, x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe,
+                 view, geo, src, nb_start, nb, data_scale, tv_scale, irls_floor, tv_floor, f, fd, work, shade,
+                 h, g, plain):  # pragma: no cover - compiled
+    """Texel s's objective at parameters ``xs`` (5,), its neighbours held at ``x`` (S, 5), and in
+    ``h`` (5, 5) and ``g`` (5,) the Gauss-Newton matrix and gradient of its reweighted quadratic
+    (see `lm_sweep`); the rest is scratch. A trial step's cost is its objective too: the same sums.
+    ``plain`` (a constant at each call): the posterior's ``J^T J`` in ``h``, with the model's own
+    derivative in roughness (flat where alpha is clamped, where the solvers' takes ``2 sqrt(alpha_min)``
+    so that a texel can leave the clamp), and the squared residual's sum returned."""
     h[:] = 0.0
     g[:] = 0.0
     cost = 0.0
@@ -534,42 +471,39 @@ def _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alp
         for p in range(lo, hi):
             level += abs(radiance[p, 0]) + abs(radiance[p, 1]) + abs(radiance[p, 2])
         floor = max(irls_floor * level / (3.0 * (hi - lo)), 1e-12)
-        r = x[s, 3]
-        m = x[s, 4]
+        r = xs[3]
+        m = xs[4]
         alpha = max(r * r, alpha_min)
-        dalpha = 2.0 * max(r, np.sqrt(alpha_min))
+        dalpha = (2.0 * r if r * r > alpha_min else 0.0) if plain else 2.0 * max(r, np.sqrt(alpha_min))
         _lobe(alpha, alpha_min, lobe, f, fd)
         _source_shading(alpha, src, s, shade)
         vi, vw, vd = _view_basis(alpha, alpha_min, view)
         for p in range(lo, hi):
             _pair_terms(alpha, f, fd, light, p, schlick, tan2, masking, view, vi, vw, vd, work, geo, shade, True)
             for c in range(3):
-                res = _model(m, x[s, c], e_pi[s, c], r0_dielectric, work, c) - radiance[p, c]
+                res = _model(m, xs[c], e_pi[s, c], r0_dielectric, work, c) - radiance[p, c]
+                j_base, j_r, j_m = _jacobian_row(m, xs[c], e_pi[s, c], r0_dielectric, work, c, dalpha)
+                if plain:
+                    cost += res * res
+                    _add_outer(h, c, 1.0, j_base, j_r, j_m)
+                    continue
                 cost += abs(res)
-                j_base, j_r, j_m = _jacobian_row(m, x[s, c], e_pi[s, c], r0_dielectric, work, c, dalpha)
                 # the reweighted quadratic's own gradient: sign(res) above the floor, Huber below
                 w = data_scale / max(abs(res), floor)
                 g[c] += w * res * j_base
                 g[3] += w * res * j_r
                 g[4] += w * res * j_m
-                h[c, c] += w * j_base * j_base
-                h[c, 3] += w * j_base * j_r
-                h[c, 4] += w * j_base * j_m
-                h[3, 3] += w * j_r * j_r
-                h[3, 4] += w * j_r * j_m
-                h[4, 4] += w * j_m * j_m
+                _add_outer(h, c, w, j_base, j_r, j_m)
         cost *= data_scale
     for k in range(nb_start[s], nb_start[s + 1]):
         j = nb[k]
         for q in range(5):
-            d = x[s, q] - x[j, q]
+            d = xs[q] - x[j, q]
             cost += tv_scale * abs(d)
             w = tv_scale / max(abs(d), tv_floor)
             g[q] += w * d
             h[q, q] += w
-    for q in range(5):
-        for q2 in range(q):
-            h[q, q2] = h[q2, q]
+    _mirror_upper(h)
     return cost
 
 
@@ -608,26 +542,27 @@ def _predicted_gain(h, g, step):  # pragma: no cover - compiled
 
 @numba.njit(parallel=True, cache=True, fastmath=_FAST_LM)
 def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min, r0_dielectric, lobe, view,
-              geo, src, nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
+              geo, src, bounds, nb_start, nb, data_scale, tv_scale, lower, upper, irls_floor, tv_floor, lam, tries,
               cost_out):  # pragma: no cover - compiled
     n_deg = light.shape[1]
-    bounds = _block_bounds(start, texels)
     for blk in numba.prange(bounds.shape[0] - 1):
         f = np.empty(n_deg)
         fd = np.empty(n_deg)
         work = np.empty((6, 3))
         shade = np.empty((src.shape[1], 6))
         h = np.empty((5, 5))
-        a = np.empty((5, 5))
         g = np.empty(5)
+        h_trial = np.empty((5, 5))  # a trial's system, unused: its cost is what counts
+        g_trial = np.empty(5)
+        a = np.empty((5, 5))
         rhs = np.empty(5)
         step = np.empty(5)
         trial = np.empty(5)
         for i in range(bounds[blk], bounds[blk + 1]):
             s = texels[i]
-            cost = _irls_system(x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
+            cost = _irls_system(x[s], x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
                                 r0_dielectric, lobe, view, geo, src, nb_start, nb, data_scale, tv_scale, irls_floor,
-                                tv_floor, f, fd, work, shade, h, g)
+                                tv_floor, f, fd, work, shade, h, g, False)
             cost_out[i] = cost
             lam_s = lam[s]
             for _ in range(tries):
@@ -640,62 +575,12 @@ def lm_kernel(x, texels, start, light, radiance, schlick, tan2, e_pi, masking, a
                     break  # none worth a try once converged
                 for q in range(5):
                     trial[q] = min(upper[q], max(lower[q], x[s, q] + step[q]))
-                new = _texel_cost(trial, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
-                                  r0_dielectric, lobe, view, geo, src, nb_start, nb, x, data_scale, tv_scale, f, fd,
-                                  work, shade)
+                new = _irls_system(trial, x, s, start, light, radiance, schlick, tan2, e_pi, masking, alpha_min,
+                                   r0_dielectric, lobe, view, geo, src, nb_start, nb, data_scale, tv_scale,
+                                   irls_floor, tv_floor, f, fd, work, shade, h_trial, g_trial, False)
                 if new < cost:
                     x[s, :] = trial
                     lam_s = max(lam_s * _LM_DOWN, _LM_MIN)
                     break
                 lam_s = min(lam_s * _LM_UP, _LM_MAX)
             lam[s] = lam_s
-
-
-@numba.njit(cache=True)
-def tv_kernel(x, edges, grad):  # pragma: no cover - compiled
-    # serial: each texel's gradient sums its edges in edge order, whatever the threads
-    m = edges.shape[0]
-    total = 0.0
-    grad[:] = 0.0
-    for e in range(m):
-        i, j = edges[e, 0], edges[e, 1]
-        for q in range(x.shape[1]):
-            d = x[i, q] - x[j, q]
-            total += abs(d)
-            step = np.sign(d) / m  # sign(0) = 0: a flat pair pulls neither texel
-            grad[i, q] += step
-            grad[j, q] -= step
-    return total / m
-
-
-@numba.njit(parallel=True, cache=True)
-def adam_kernel(x, grad, m1, m2, lr, c1, c2, b1, b2, eps, floor):  # pragma: no cover - compiled
-    # no fast math: the same operations in the same order as `solve.adam_step`'s NumPy, so the
-    # same bits, in one pass over the five arrays instead of a dozen temporaries
-    for i in numba.prange(x.shape[0]):
-        for q in range(x.shape[1]):
-            g = grad[i, q]
-            a = b1 * m1[i, q] + (1.0 - b1) * g
-            b = b2 * m2[i, q] + (1.0 - b2) * g * g
-            m1[i, q] = a
-            m2[i, q] = b
-            v = min(max(x[i, q] - lr * (a / c1) / (np.sqrt(b / c2) + eps), 0.0), 1.0)
-            x[i, q] = max(v, floor[q])
-
-
-@numba.njit(parallel=True, cache=True)
-def source_geometry_kernel(wo, incoming, slot, out):  # pragma: no cover - compiled
-    for n in numba.prange(wo.shape[0]):
-        t = slot[n]
-        for j in range(incoming.shape[1]):
-            h0 = incoming[t, j, 0] + wo[n, 0]
-            h1 = incoming[t, j, 1] + wo[n, 1]
-            h2 = incoming[t, j, 2] + wo[n, 2]
-            norm2 = h0 * h0 + h1 * h1 + h2 * h2
-            lit = incoming[t, j, 2] > 0.0 and wo[n, 2] > 0.0 and norm2 > 0.0
-            if not lit:
-                norm2 = 1.0
-            c = min(max((h0 * wo[n, 0] + h1 * wo[n, 1] + h2 * wo[n, 2]) / np.sqrt(norm2), 0.0), 1.0)
-            out[n, j, 0] = (h0 * h0 + h1 * h1) / norm2
-            out[n, j, 1] = (1.0 - c) ** 5
-            out[n, j, 2] = 0.25 / wo[n, 2] if lit else 0.0

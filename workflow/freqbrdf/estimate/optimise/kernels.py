@@ -1,8 +1,9 @@
 """The gradient-descent estimator's compiled kernels, as Python sees them: checked arguments.
 
 Each kernel (`freqbrdf.estimate.optimise.compiled`, the light's in
-`freqbrdf.estimate.optimise.compiled_light`) fuses a computation that NumPy would
-spread over several texture-sized temporaries. The tests compare each with an independent
+`freqbrdf.estimate.optimise.compiled_light`, the others in
+`freqbrdf.estimate.optimise.compiled_steps`) fuses a computation that NumPy would spread over
+several texture-sized temporaries. The tests compare each with an independent
 evaluation: `freqbrdf.sphere.sh.real_sh` (degree sums), a direct evaluation of the model and
 central differences (loss and gradient), dense quadrature of the environment (shadowing
 factors, through `freqbrdf.estimate.light.shadowed_light`). The kernels are compiled on first
@@ -22,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from freqbrdf.estimate.optimise import compiled, compiled_light
+from freqbrdf.estimate.optimise import compiled, compiled_light, compiled_steps
 from freqbrdf.sphere.brdf import ALPHA_MIN, R0_DIELECTRIC
 
 __all__ = ["PairData", "KernelModel", "LmStep", "degree_sums", "shadowing_factors", "basis_factors", "table_sums", "l1_loss_gradient",
@@ -260,11 +261,14 @@ def _point(point: tuple[np.ndarray, np.ndarray] | None, start: np.ndarray, dtype
     return geometry, src
 
 
-def _arguments(terms: np.ndarray, pairs: PairData, model: KernelModel) -> tuple:
-    """The arguments every model kernel takes, in the kernels' order, checked."""
+def _arguments(terms: np.ndarray, pairs: PairData, model: KernelModel, texels: np.ndarray | None = None) -> tuple:
+    """The arguments every model kernel takes, in the kernels' order, checked: the last, the blocks
+    of its parallel loop over ``texels`` (default: every observed texel), of equal work each."""
+    if texels is None:
+        texels = np.arange(pairs.start.shape[0] - 1)
     return (pairs.start, terms, pairs.radiance, pairs.schlick, pairs.tan2, pairs.irradiance_pi, model.masking,
             model.alpha_min, model.r0_dielectric, _table(model.lobe, terms), _view(model.view),
-            *_point(model.point, pairs.start, pairs.radiance.dtype))
+            *_point(model.point, pairs.start, pairs.radiance.dtype), compiled_steps.block_bounds(pairs.start, texels))
 
 
 def l1_loss_gradient(
@@ -414,7 +418,7 @@ def lm_sweep(
     """
     nb_start, nb = neighbours
     cost = np.empty(texels.shape[0])
-    compiled.lm_kernel(x, texels, *_arguments(terms, pairs, model), nb_start, nb, float(step.data_scale),
+    compiled.lm_kernel(x, texels, *_arguments(terms, pairs, model, texels), nb_start, nb, float(step.data_scale),
                        float(step.tv_scale), step.lower, step.upper, float(step.irls_floor), float(step.tv_floor), lam,
                        int(step.tries), cost)
     return cost
@@ -444,7 +448,7 @@ def tv_loss_gradient(x: np.ndarray, edges: np.ndarray) -> tuple[float, np.ndarra
     if edges.min() < 0 or edges.max() >= x.shape[0]:
         raise ValueError(f"edges must index the {x.shape[0]} rows of x, got {edges.min()}..{edges.max()}")
     grad = np.empty_like(x)
-    return float(compiled.tv_kernel(x, edges, grad)), grad
+    return float(compiled_steps.tv_kernel(x, edges, grad)), grad
 
 
 def adam_update(
@@ -478,7 +482,7 @@ def adam_update(
     if floor.shape != x.shape[1:]:
         raise ValueError(f"adam_update: floor must have shape {x.shape[1:]}, got {floor.shape}")
     b1, b2 = betas
-    compiled.adam_kernel(x, grad, m1, m2, float(lr), 1.0 - b1**step, 1.0 - b2**step, float(b1), float(b2),
+    compiled_steps.adam_kernel(x, grad, m1, m2, float(lr), 1.0 - b1**step, 1.0 - b2**step, float(b1), float(b2),
                          float(eps), floor)
 
 
@@ -488,4 +492,4 @@ def source_geometry(wo: np.ndarray, incoming: np.ndarray, slot: np.ndarray, out:
     (0 where the source or the view is below the horizon) of every pair and source, in one pass
     instead of NumPy's temporaries per source; ``wo`` (N, 3), ``incoming`` (T, S, 3)
     float64 and ``slot`` (N,) int64, C-contiguous, checked by the caller."""
-    compiled.source_geometry_kernel(wo, incoming, slot, out)
+    compiled_steps.source_geometry_kernel(wo, incoming, slot, out)
