@@ -791,7 +791,8 @@ def consumer(repo, directory, config: dict) -> None:
     (directory / "config.yaml").write_text(yaml.safe_dump(config))
     (directory / "Snakefile").write_text(
         'configfile: "config.yaml"\n\n\n'
-        f'module freqbrdf:\n    snakefile:\n        "{repo / "workflow" / "Snakefile"}"\n    config:\n        config\n\n\n'
+        f'module freqbrdf:\n    snakefile:\n        "{os.path.relpath(repo / "workflow" / "Snakefile", directory)}"\n'
+        "    config:\n        config\n\n\n"
         "use rule * from freqbrdf\n"
     )
 
@@ -824,11 +825,16 @@ def test_snakedeploy_deploys_the_workflow_without_a_warning_and_the_deployment_p
     snakefile = deployed / "workflow" / "Snakefile"
     declaration = snakefile.read_text()
     assert '"workflow/Snakefile"' in declaration and (deployed / "config" / "config.yaml").is_file()
-    snakefile.write_text(declaration.replace('"workflow/Snakefile"', f'"{source / "workflow" / "Snakefile"}"'))
+    # relative to the consumer's Snakefile, as docs/cluster.md gives it: --lint rejects an absolute path
+    relative = os.path.relpath(source / "workflow" / "Snakefile", snakefile.parent)
+    snakefile.write_text(declaration.replace('"workflow/Snakefile"', f'"{relative}"'))
     planned = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--cores", "2"], cwd=deployed,
                              capture_output=True, text=True, timeout=300)
     assert planned.returncode == 0, planned.stderr[-4000:]
     assert planned_jobs(planned.stdout)["optimise_svbrdf"] > 0
+    linted = subprocess.run([sys.executable, "-m", "snakemake", "--lint"], cwd=deployed, capture_output=True,
+                            text=True, timeout=300)
+    assert "Absolute path" not in linted.stdout + linted.stderr, linted.stdout[-3000:]
 
 
 def test_the_workflow_runs_as_a_module_of_another(repo, run, tmp_path):
