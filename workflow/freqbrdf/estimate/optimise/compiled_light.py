@@ -154,6 +154,7 @@ def table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirr
     n = slots.shape[0]
     for blk in numba.prange((n + _TEXELS - 1) // _TEXELS):
         lg = np.empty(size, np.float32)
+        lg64 = np.empty(size)
         y = np.empty(out.shape[1] * out.shape[1])
         scratch = _order_scratch(out.shape[1] - 1)
         for i in range(blk * _TEXELS, min(n, (blk + 1) * _TEXELS)):
@@ -165,5 +166,7 @@ def table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirr
                         row = coefficients[corner[i, j], r]
                         for q in range(size):
                             lg[q] += w * row[q]
+            for q in range(size):
+                lg64[q] = lg[q]  # exact: each pair's products then read doubles, not singles to convert
             for p in range(start[slots[i]], start[slots[i] + 1]):
-                _mirror_sums(lg.reshape(y.shape[0], 3), mirror[p], a, b, y, scratch, out, p)
+                _mirror_sums(lg64.reshape(y.shape[0], 3), mirror[p], a, b, y, scratch, out, p)
