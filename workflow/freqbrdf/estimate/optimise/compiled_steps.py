@@ -1,7 +1,7 @@
 """Compiled (numba) loops of the gradient-descent estimator that share no helper with its model:
 the blocks of the model's parallel loops, the TV term, Adam's update and the point sources' pair
-geometry, called through
-`freqbrdf.estimate.optimise.kernels`, which checks their arguments and documents them.
+geometry, called through `freqbrdf.estimate.optimise.kernels`, which checks their arguments and
+documents them.
 
 Apart from `freqbrdf.estimate.optimise.compiled` because none inlines anything of it (numba's
 on-disk cache follows the defining file only, which is why the model's kernels and helpers
@@ -27,9 +27,9 @@ def block_bounds(start, texels):  # pragma: no cover - compiled
     A texel's work is its pairs (none past the observed texels) plus ``_TEXEL_WORK``, the per-texel
     part (lobe, view basis, sources) in pairs' worth. The texels are sorted by pair count (most
     first) and numba splits a parallel loop into one run of iterations per thread, so blocks of
-    equal texel counts gave the first thread 73% of the pairs; contiguous, because every pair
-    a block reads then follows the last one in memory (texels taken strided, for balance, cost a
-    single thread 40% more time).
+    equal texel counts gave the first thread most of the pairs; contiguous, because every pair
+    a block reads then follows the last one in memory (texels taken strided, for balance, cost
+    each thread more in scattered reads than the balance saved: docs/estimator.md, Cost).
     """
     n = texels.shape[0]
     n_obs = start.shape[0] - 1
