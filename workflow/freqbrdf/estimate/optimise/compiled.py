@@ -1,5 +1,5 @@
 """Compiled (numba) inner loops of the gradient-descent estimator's model (its objective, grid
-start and LM sweeps), called through `freqbrdf.estimate.optimise.kernels`, which checks their
+start, LM sweeps and the posterior's curvature), called through `freqbrdf.estimate.optimise.kernels`, which checks their
 arguments and documents them; the light's are in `freqbrdf.estimate.optimise.compiled_light`, the
 loops that share nothing with the model (TV, Adam's update, the sources' geometry) in
 `freqbrdf.estimate.optimise.compiled_steps`.
@@ -466,11 +466,13 @@ def _irls_system(xs, x, s, start, light, radiance, schlick, tan2, e_pi, masking,
     cost = 0.0
     if s < start.shape[0] - 1:
         lo, hi = start[s], start[s + 1]
-        # IRLS floor relative to the texel's own radiance, so that it means the same in any units
-        level = 0.0
-        for p in range(lo, hi):
-            level += abs(radiance[p, 0]) + abs(radiance[p, 1]) + abs(radiance[p, 2])
-        floor = max(irls_floor * level / (3.0 * (hi - lo)), 1e-12)
+        floor = 0.0  # the plain form reweights nothing
+        if not plain:
+            # IRLS floor relative to the texel's own radiance, so that it means the same in any units
+            level = 0.0
+            for p in range(lo, hi):
+                level += abs(radiance[p, 0]) + abs(radiance[p, 1]) + abs(radiance[p, 2])
+            floor = max(irls_floor * level / (3.0 * (hi - lo)), 1e-12)
         r = xs[3]
         m = xs[4]
         alpha = max(r * r, alpha_min)
