@@ -56,6 +56,16 @@ def test_a_gpu_variant_without_a_device_or_an_unknown_one_names_the_key():
         mitsuba_setup.resolve_variant("scalar_rgb")
 
 
+def test_a_run_plans_for_the_variant_it_names_and_resolves_auto_here():
+    """A run planned on a head node without a GPU for GPU nodes keeps cuda_ad_rgb (its jobs check
+    the device where they run); auto is this machine's answer."""
+    assert mitsuba_setup.planned_variant("cuda_ad_rgb") == "cuda_ad_rgb"
+    assert mitsuba_setup.planned_variant("llvm_ad_rgb") == "llvm_ad_rgb"
+    assert mitsuba_setup.planned_variant("auto") == mitsuba_setup.resolve_variant("auto")
+    with pytest.raises(ValueError, match="mitsuba.variant: 'scalar_rgb' is not one of"):
+        mitsuba_setup.planned_variant("scalar_rgb")
+
+
 def test_auto_asks_the_driver():
     # on a machine without libcuda this is the CPU; with a working GPU, the GPU
     expected = "cuda_ad_rgb" if mitsuba_setup.cuda_devices() > 0 else "llvm_ad_rgb"

@@ -21,6 +21,7 @@ from freqbrdf.report.tables.render import HTML_STYLE, html_page, latex_escape, t
 from freqbrdf.report.tables.summary import SUMMARY_KEYS, run_facts, run_summary_html, summaries
 from freqbrdf.report.tables.tables import (ablation_table, agreement_table, finetune_table, headline_table, merge_table,
                                            parameter_table, relighting_table, uncertainty_table)
+from freqbrdf.util.mitsuba_setup import timing_note
 from freqbrdf.report.tables.tidy import check_tidy, equal_accuracy_ratio, speed_ratio, views_sweep
 
 PAPER_FILE = Path(__file__).resolve().parents[1] / "config" / "paper_results.yaml"
@@ -688,6 +689,19 @@ RUN = {"seed": 3, "preset": {"name": "default", "smoke_test": False}, "mitsuba":
        "envs": ["studio", "museum"], "env_kinds": {"studio": "studio", "museum": "museum"},
        "render": {"train_views": 24, "test_views": 2, "resolution": 256, "spp": 64},
        "poses": "gt", "methods": ["freq", "freq_noshadow"], "relight_envs": "held_out"}
+CPU_TIMING = timing_note("llvm_ad_rgb")
+
+
+def test_the_tables_say_where_the_times_were_taken():
+    """They said "2 CPU cores" whatever ran: a run with Mitsuba on a GPU says so in the claims'
+    caption and on the landing page, beside the per-job CPU threads."""
+    gpu = ClaimContext(timing=timing_note("cuda_ad_rgb"))
+    caption = next(s for s in summaries(full_run(), PAPER, ENV_KINDS, gpu) if s.key == "claims").caption
+    assert "Mitsuba on the GPU (cuda_ad_rgb)" in caption and "at most 2 CPU threads" in caption
+    cpu_caption = next(s for s in summaries(full_run(), PAPER, ENV_KINDS, ClaimContext()) if s.key == "claims").caption
+    assert "Mitsuba on the CPU (llvm_ad_rgb)" in cpu_caption and "GPU" not in cpu_caption
+    page = run_summary_html(run_facts(RUN), claims(full_run(), PAPER), headline_table(full_run()), gpu.timing)
+    assert "Mitsuba on the GPU (cuda_ad_rgb)" in page and "2 CPU cores" not in page
 
 
 def test_run_facts_state_the_configuration_with_display_names():
@@ -697,10 +711,10 @@ def test_run_facts_state_the_configuration_with_display_names():
     assert "24 training and 2 test views" in facts["Views"] and "256 x 256 pixels at 64" in facts["Views"]
     assert "held out" in facts["Relit under"] and facts["Seed"] == "3"
     assert facts["Preset"] == "default" and facts["Mitsuba budget"] == "6 epochs x 8 spp"
-    assert "smoke test" not in run_summary_html(facts, claims(full_run(), PAPER), headline_table(full_run()))
+    assert "smoke test" not in run_summary_html(facts, claims(full_run(), PAPER), headline_table(full_run()), CPU_TIMING)
     tiny = run_facts(dict(RUN, preset={"name": "tiny", "smoke_test": True}))
     assert tiny["Preset"].startswith("tiny (a smoke test")
-    page = run_summary_html(tiny, claims(full_run(), PAPER), headline_table(full_run()))
+    page = run_summary_html(tiny, claims(full_run(), PAPER), headline_table(full_run()), CPU_TIMING)
     assert '<p class="warning"><b>A smoke test:</b>' in page
     listed = dict(RUN, relight_envs=["museum"], real_captures=[])
     assert run_facts(listed)["Relit under"].startswith("museum,") and run_facts(listed)["Real captures"] == "none"
@@ -717,7 +731,7 @@ def test_run_facts_call_a_scan_a_scan_and_a_captured_map_captured():
     assert facts["Captured under"] == "sky (a captured map), studio (procedural)"
     assert facts["Relit under"].endswith("of sky (a captured map), studio (procedural), outdoor (procedural sunny)")
     assert facts["Sources"].startswith("bunny: the Stanford bunny") and "maps sky: Poly Haven" in facts["Sources"]
-    page = run_summary_html(facts, claims(full_run(), PAPER), headline_table(full_run()))
+    page = run_summary_html(facts, claims(full_run(), PAPER), headline_table(full_run()), CPU_TIMING)
     assert "bunny (a scan" in page and "sky (a captured map)" in page and "procedural objects" not in page
     procedural = run_facts(RUN)  # no scan and no captured map: nothing to credit
     assert "scan" not in procedural["Objects"] and "captured" not in procedural["Captured under"]
@@ -743,7 +757,7 @@ def test_headline_table_has_one_method_column_and_no_empty_row():
     assert list(head.columns) == ["Method", "Parameter MSE", "PSNR-H", "Time"]
     assert len(head) == df.method[df.method != ""].nunique()
     assert all(head.Method.str.len() > 0) and not head.Method.str.startswith(" (").any()
-    page = run_summary_html(run_facts(RUN), claims(df, PAPER), head)
+    page = run_summary_html(run_facts(RUN), claims(df, PAPER), head, CPU_TIMING)
     table = page[page.index("Headline numbers"):]
     table = table[: table.index("</table>")]
     headers = re.findall(r"<th[^>]*>([^<]*)</th>", table)
@@ -758,7 +772,7 @@ def test_headline_table_has_one_method_column_and_no_empty_row():
 def test_run_summary_counts_the_verdicts_and_scopes_its_style():
     df = full_run({("freq", "mse_average"): 0.5})  # worse than Mitsuba and the spectrum: two claims fail
     table = claims(df, PAPER)
-    page = run_summary_html(run_facts(RUN), table, headline_table(df))
+    page = run_summary_html(run_facts(RUN), table, headline_table(df), CPU_TIMING)
     counts = table.holds.value_counts()
     assert counts.get("no", 0) >= 2
     assert (f"{len(table)} claims: {counts.get('yes', 0)} yes, {counts['no']} no, {counts.get('within noise', 0)} "

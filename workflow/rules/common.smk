@@ -7,6 +7,7 @@ from dataclasses import asdict
 from freqbrdf import layout
 from freqbrdf.util.seeds import derived_seed
 from freqbrdf.util.sizing import size_factor
+from freqbrdf.util.mitsuba_setup import planned_variant
 from freqbrdf.dependencies import script_modules
 from freqbrdf.estimate.mitsuba_settings import run_settings
 from freqbrdf.export.viewer import ENTROPY as ENTROPY_OVERLAY
@@ -111,9 +112,11 @@ def minutes(amount, kind="fixed"):
     return max(1, math.ceil(amount * size_factor(config, kind)))
 
 
-# Rules that run Mitsuba ask for a GPU when they will use one (mitsuba.variant: cuda_ad_rgb);
+# Rules that run Mitsuba ask for a GPU when they will use one (mitsuba.variant cuda_ad_rgb, or auto
+# where this machine has a CUDA device), so that --resources gpu=1 runs one such job per device;
 # the SLURM executor turns the gpu resource into --gpus.
-MITSUBA_GPUS = int(config["mitsuba"]["variant"] == "cuda_ad_rgb")
+MITSUBA_VARIANT = planned_variant(config["mitsuba"]["variant"])
+MITSUBA_GPUS = int(MITSUBA_VARIANT == "cuda_ad_rgb")
 
 LIBRARY = WORKFLOW / "freqbrdf"
 SCRIPTS = WORKFLOW / "scripts"

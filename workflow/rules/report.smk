@@ -74,7 +74,7 @@ rule tables:
         run={
             "seed": config["seed"],
             "preset": config["preset"],
-            "mitsuba": {key: config["mitsuba"][key] for key in ("epochs", "spp")},
+            "mitsuba": {key: config["mitsuba"][key] for key in ("epochs", "spp")} | {"variant": MITSUBA_VARIANT},
             "objects": SYNTHETIC_OBJECTS,
             "real_captures": list(REAL_CAPTURES),
             "capture_envs": CAPTURE_ENVS,
@@ -211,6 +211,7 @@ rule convergence_figure:
         curves=CONVERGENCE_CURVES,
         starts=[METHOD_REGISTRY[m].start for m in CONVERGENCE_CURVES],
         points=CONVERGENCE_POINTS,
+        variant=MITSUBA_VARIANT,
     script:
         "../scripts/convergence_figure.py"
 

@@ -7,6 +7,7 @@ import pandas as pd
 from freqbrdf.report.figures import convergence_figure
 from freqbrdf.report.tables.tidy import read_tidy
 from freqbrdf.util.logs import run_script
+from freqbrdf.util.mitsuba_setup import timing_note
 
 
 def main(smk, log):
@@ -24,7 +25,8 @@ def main(smk, log):
         curve = pd.read_csv(Path(directory) / "mse_curve.tsv", sep="\t")
         offset = points[start][0] if start in points else 0.0  # a fine-tuning run starts after its start method
         curves[method] = (offset + curve.elapsed_s.to_numpy(), curve.mse_average.to_numpy())
-    convergence_figure(smk.output[0], curves, points, f"{w.object} captured under {w.env}: parameter MSE against time")
+    convergence_figure(smk.output[0], curves, points, f"{w.object} captured under {w.env}: parameter MSE against time",
+                       timing_note(smk.params.variant))
     log.info("convergence of %s; one-shot %s", ", ".join(curves), ", ".join(points))
 
 

@@ -5,6 +5,7 @@ report's landing summary (what was run, the claims' verdicts, the headline numbe
 
 from freqbrdf.util.io import atomic_path
 from freqbrdf.util.logs import run_script
+from freqbrdf.util.mitsuba_setup import timing_note
 from freqbrdf.report.tables.paper import read_paper_results
 from freqbrdf.report.tables.render import html_page, to_html, to_latex, to_markdown
 from freqbrdf.report.intervals import IntervalSettings
@@ -27,7 +28,8 @@ def main(smk, log):
     if metrics.empty:
         raise ValueError(f"{smk.input.metrics}: no rows with poses == {smk.params.poses!r}")
     context = ClaimContext(IntervalSettings.from_config(smk.params.intervals),
-                           mitsuba_budget(smk.params.run["mitsuba"]), frozenset(smk.params.real_objects))
+                           mitsuba_budget(smk.params.run["mitsuba"]), frozenset(smk.params.real_objects),
+                           timing_note(smk.params.run["mitsuba"]["variant"]))
     tables = summaries(metrics, read_paper_results(smk.input.paper), smk.params.env_kinds, context)
     for summary in tables:
         write_text(smk.output[f"{summary.key}_md"], to_markdown(summary.table, summary.title, summary.caption))
@@ -43,7 +45,8 @@ def main(smk, log):
                                                  to_html(claims.table, None, claims.caption, verdicts="holds")))
     # what was run, from the run's config: env_kinds tells a captured map from procedural light
     facts = run_facts(dict(smk.params.run, env_kinds=smk.params.env_kinds))
-    write_text(smk.output.run_summary, run_summary_html(facts, claims.table, headline_table(metrics, context.intervals)))
+    write_text(smk.output.run_summary, run_summary_html(facts, claims.table, headline_table(metrics, context.intervals),
+                                                    context.timing))
     verdicts = claims.table.holds.value_counts().to_dict()
     log.info("claims: %s", ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items())))
 

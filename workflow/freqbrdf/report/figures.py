@@ -299,6 +299,7 @@ def convergence_figure(
     curves: Mapping[str, tuple[np.ndarray, np.ndarray]],
     points: Mapping[str, tuple[float, float]],
     title: str,
+    timing: str,
 ) -> None:
     """Parameter MSE against time: the differentiable-rendering runs as curves, the
     frequency-domain methods as points at their time from the capture.
@@ -314,6 +315,8 @@ def convergence_figure(
         One-shot methods.
     title : str
         Figure title.
+    timing : str
+        Where the times were taken (`freqbrdf.util.mitsuba_setup.timing_note`).
     """
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.0, 3.6), layout="constrained")
@@ -323,7 +326,7 @@ def convergence_figure(
         ax.scatter([max(t, 1e-2)], [mse], marker="*", s=90, zorder=3, label=method_label(method))
         ax.axhline(mse, color="grey", linewidth=0.5, linestyle=":")
     ax.set_xscale("log")
-    ax.set_xlabel("seconds from the capture (2 CPU cores; Mitsuba: optimisation only)")
+    ax.set_xlabel(f"seconds from the capture ({timing}; Mitsuba: optimisation only)")
     ax.set_ylabel("parameter MSE (observed texels)")
     ax.legend(fontsize=7, ncol=2)
     ax.set_title(title, fontsize=9)

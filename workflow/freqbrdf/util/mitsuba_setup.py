@@ -152,3 +152,24 @@ def resolve_variant(requested: str, devices: int | None = None) -> str:
         raise ValueError("config key mitsuba.variant: cuda_ad_rgb needs a CUDA device and driver (libcuda), "
                          "and none works on this machine; use auto or llvm_ad_rgb")
     return "cuda_ad_rgb" if devices > 0 else "llvm_ad_rgb"
+
+
+def planned_variant(requested: str) -> str:
+    """The variant a run plans for: ``auto`` resolved on this machine, an explicit one as given.
+
+    Unlike `resolve_variant` it accepts ``cuda_ad_rgb`` on a machine without a GPU, where a run is
+    planned for GPU nodes (a cluster's head node); the jobs check the device where they run.
+    """
+    if requested not in VARIANTS:
+        raise ValueError(f"config key mitsuba.variant: {requested!r} is not one of {VARIANTS}")
+    return resolve_variant(requested) if requested == "auto" else requested
+
+
+def timing_note(variant: str) -> str:
+    """Where a run's times were taken, as its tables and figures say it, e.g.
+    ``jobs of at most 2 CPU threads, Mitsuba on the GPU (cuda_ad_rgb)``.
+
+    The 2 threads are what the rules declare (``threads: 2``); Snakemake gives fewer under ``--cores 1``.
+    """
+    where = "the GPU" if variant.startswith("cuda") else "the CPU"
+    return f"jobs of at most 2 CPU threads, Mitsuba on {where} ({variant})"

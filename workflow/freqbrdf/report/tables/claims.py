@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from freqbrdf.methods import METHODS, ablation_method
+from freqbrdf.util.mitsuba_setup import timing_note
 from freqbrdf.report.intervals import NO, NOISE, NOT_JUDGED, YES, Interval, IntervalSettings, all_hold, judge
 from freqbrdf.report.tables.display import MISSING, NOT_RUN, fmt, fmt_interval, fmt_paper
 from freqbrdf.report.tables.paper import AGREEMENT_ROWS, AVERAGE, FINETUNED, MERGE_AVERAGE, MITSUBA, MITSUBA_FULL, \
@@ -59,11 +60,14 @@ class ClaimContext:
         The baseline's budget as the tables label it, e.g. ``6 epochs x 8 spp``.
     real_objects : frozenset of str
         Objects that are real captures (judged against the paper's Stanford-ORB figures).
+    timing : str
+        Where the run's times were taken (`freqbrdf.util.mitsuba_setup.timing_note`).
     """
 
     intervals: IntervalSettings = field(default_factory=IntervalSettings)
     mitsuba_budget: str = ""
     real_objects: frozenset[str] = frozenset()
+    timing: str = field(default_factory=lambda: timing_note("llvm_ad_rgb"))
 
 
 class _Judge:

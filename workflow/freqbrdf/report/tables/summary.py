@@ -96,7 +96,8 @@ def mitsuba_budget(mitsuba: Mapping[str, object]) -> str:
 RUN_SUMMARY_STYLE = scoped_style(HTML_STYLE, "div.freqbrdf-summary")
 
 
-def run_summary_html(facts: Mapping[str, str], claims_table: pd.DataFrame, headline: pd.DataFrame) -> str:
+def run_summary_html(facts: Mapping[str, str], claims_table: pd.DataFrame, headline: pd.DataFrame,
+                     timing: str) -> str:
     """The report's landing summary as an HTML fragment: what was run, the paper's claims
     with their verdicts, and the headline numbers.
 
@@ -108,6 +109,8 @@ def run_summary_html(facts: Mapping[str, str], claims_table: pd.DataFrame, headl
         From :func:`freqbrdf.report.tables.claims.claims` (its ``criterion`` column is left to the claims page).
     headline : DataFrame
         From :func:`freqbrdf.report.tables.tables.headline_table`.
+    timing : str
+        Where the times were taken (`freqbrdf.util.mitsuba_setup.timing_note`).
     """
     tally = ", ".join(f"{n} {verdict}" for verdict, n in verdict_counts(claims_table).items())
     lines = "".join(f"<li><b>{html.escape(k)}:</b> {html.escape(v)}</li>" for k, v in facts.items())
@@ -122,7 +125,7 @@ def run_summary_html(facts: Mapping[str, str], claims_table: pd.DataFrame, headl
                       verdicts="holds")
             + to_html(headline, "Headline numbers",
                       "Means over this run's captures [95% intervals]: parameter MSE over observed texels, PSNR-H of relighting "
-                      "under held-out environments, time per capture on 2 CPU cores. Every number: "
+                      f"under held-out environments, time per capture ({timing}). Every number: "
                       "Tables, metrics.csv.")
             + "</div>\n")
 
@@ -191,7 +194,7 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
     scope = (f"Ours: means over this run's {n_captures} capture(s), {n_truth} with ground truth, and in brackets "
              f"their {100 * context.intervals.level:g}% t-interval over captures (objects for a merge) "
              "(docs/metrics.md, Intervals); "
-             "(parameter MSE, relighting); times on 2 CPU cores. "
+             f"(parameter MSE, relighting); times: {context.timing}. "
              "Paper: Wiersma et al. 2024 (arXiv 2406.17774), on an RTX 4090.")
     tables = [
         Summary("table1_relighting", "Table 1: relighting under held-out environments",
