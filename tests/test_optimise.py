@@ -353,6 +353,20 @@ def test_gradient_matches_central_differences(small: dict, method: str, model: t
     np.testing.assert_allclose(grad - grad0, tv_weight * total_variation(x, problem.neighbours)[1], atol=1e-15)
 
 
+def test_every_observed_pair_weighs_the_same_in_the_data_term(small: dict) -> None:
+    """The loss without TV is the plain mean of |B - B_obs| over observed pairs and channels: no
+    cos(theta_o) sample weight, the setting of the paper's Table 4 ablation (section 5.5.1), whatever
+    the observations' weights (cos theta_o, kept for the SH fits) say."""
+    x = np.random.default_rng(9).uniform(0.1, 0.9, (18, 5))
+    params = {"base_color": x[:, :3], "roughness": x[:, 3], "metallic": x[:, 4]}
+    observed = small["weight"] > 0
+    assert np.ptp(small["weight"][observed]) > 0.3  # the weights vary: a weighted mean would differ
+    problem = problem_of(small, small["radiance"])
+    loss, _ = loss_and_gradient(x, problem, terms(small, problem, x[:, 3], True), KernelModel(True), 0.0)
+    plain = np.abs(render(small, params, "freq", ("gaussian", "paper", "lambert")) - small["radiance"])[observed].mean()
+    assert loss == pytest.approx(plain, rel=1e-9)
+
+
 def test_float32_loss_and_gradient_match_float64(small: dict) -> None:
     p64 = problem_of(small, small["radiance"], "float64")
     p32 = problem_of(small, small["radiance"], "float32")

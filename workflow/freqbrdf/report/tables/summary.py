@@ -223,7 +223,8 @@ def summaries(df: pd.DataFrame, paper: PaperResults, env_kinds: Mapping[str, str
                 "Our model with and without the shadowing G1(theta_i) and masking G1(theta_o) terms; "
                 "rh2001 has neither (Ramamoorthi and Hanrahan 2001). The paper's relighting numbers are on "
                 "Stanford-ORB and its MSE and time on its synthetic set, both without cosine weighting of "
-                "the samples; ours use cosine weighting. " + scope,
+                "the samples (its section 5.5.1), as ours: every observed pair weighs the same in our data "
+                "term, so Ours here is the Shadowing + masking row's configuration. " + scope,
                 ablation_table(df, paper, intervals=context.intervals)),
         Summary("table5_finetune", "Table 5: fine-tuning with Mitsuba",
                 "A short Mitsuba optimisation started from our textures (freq+mitsuba) against Mitsuba's "
