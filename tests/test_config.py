@@ -82,6 +82,17 @@ def test_mistakes_give_one_line_naming_the_key(repo, schema, default, edit, mess
     assert "\n" not in str(info.value)
 
 
+def test_an_undefined_environment_says_how_to_define_one_and_the_example_works(schema, default):
+    """A newcomer writes capture_envs: [studio], the kind, not a name under envs: the message shows
+    a definition, and that definition, pasted in, passes."""
+    default["capture_envs"] = ["studio"]
+    with pytest.raises(ConfigError, match=r"capture_envs: \['studio'\] not defined under envs") as info:
+        check_config(copy.deepcopy(default), schema)
+    example = str(info.value).split("e.g. ", 1)[1].split(" (config/tiny.yaml", 1)[0]
+    update_config(default, yaml.safe_load(example))
+    check_config(default, schema)
+
+
 def test_snakemake_stops_at_once_on_a_bad_key(repo, tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("render:\n  spp: -4\n")

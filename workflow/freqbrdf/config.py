@@ -158,19 +158,22 @@ def _check_schema(config: dict[str, Any], schema: str | Path) -> None:
         raise ConfigError(f"config key {_key_path(error.absolute_path)}: {error.message}") from None
 
 
+# An environment is a name under ``envs`` with its settings; a newcomer often writes the kind instead.
+_DEFINE_ONE = ("; define each under envs with its kind and settings, e.g. envs: {studio: {kind: studio, seed: 1, "
+               "lights: 3, light_radius_deg: 22.0}} (config/tiny.yaml defines one of every procedural kind)")
+
+
 def _check_env_names(config: dict[str, Any]) -> None:
     """Environments and methods named anywhere are defined (under ``envs``, in the method registry)."""
     unknown = [e for e in config["capture_envs"] if e not in config["envs"]]
     if unknown:
-        raise ConfigError(
-            f"config key capture_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
-        )
+        raise ConfigError(f"config key capture_envs: {unknown} not defined under envs "
+                          f"(defined: {sorted(config['envs'])}){_DEFINE_ONE}")
     relight_envs = config["evaluate"]["relight_envs"]
     unknown = [e for e in relight_envs if e not in config["envs"]] if isinstance(relight_envs, list) else []
     if unknown:
-        raise ConfigError(
-            f"config key evaluate.relight_envs: {unknown} not defined under envs (defined: {sorted(config['envs'])})"
-        )
+        raise ConfigError(f"config key evaluate.relight_envs: {unknown} not defined under envs "
+                          f"(defined: {sorted(config['envs'])}){_DEFINE_ONE}")
     unknown = [m for m in config["methods"] if m not in METHODS]
     if unknown:
         raise ConfigError(f"config key methods: {unknown} are not registered methods (freqbrdf.methods: {list(METHODS)})")
