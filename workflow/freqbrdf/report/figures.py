@@ -326,7 +326,7 @@ def convergence_figure(
         ax.scatter([max(t, 1e-2)], [mse], marker="*", s=90, zorder=3, label=method_label(method))
         ax.axhline(mse, color="grey", linewidth=0.5, linestyle=":")
     ax.set_xscale("log")
-    ax.set_xlabel(f"seconds from the capture ({timing}; Mitsuba: optimisation only)")
+    ax.set_xlabel(f"seconds from the capture (Mitsuba: optimisation only)\n{timing}", fontsize=9)
     ax.set_ylabel("parameter MSE (observed texels)")
     ax.legend(fontsize=7, ncol=2)
     ax.set_title(title, fontsize=9)
