@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from freqbrdf.report.metrics import pearson
-from freqbrdf.report.sparsification import ause, partial_pearson, random_ause, sparsification_curve
+from freqbrdf.report.sparsification import (LEVELS, ause, interval_coverage, partial_pearson, random_ause, reliability,
+                                             sparsification_curve)
 
 
 def test_a_curve_by_hand_including_a_texel_cut_in_half():
@@ -104,3 +105,22 @@ def test_a_perfect_estimate_has_no_scores_and_no_curves():
     assert all(np.isnan(v) for v in uncertainty_scores(maps, errors).values())
     assert set(uncertainty_scores(maps, errors)) == {"ause_entropy_parameter", "ause_random_parameter"}
     assert sparsification_curves(maps, errors) == []
+
+
+def test_reliability_of_a_calibrated_posterior_is_the_diagonal_and_of_a_narrow_one_below_it():
+    """Errors drawn from the posterior itself cover each level's share; halved deviations cover
+    what a Gaussian gives at half the width (an analytic value, e.g. 0.5 at 1.645 / 2 sd: 58.9%)."""
+    rng = np.random.default_rng(3)
+    std = rng.uniform(0.01, 0.2, 400_000)
+    truth = rng.uniform(0, 1, std.size)
+    estimate = truth + rng.normal(0.0, std)
+    shares = reliability(estimate, truth, std)
+    assert list(shares) == list(LEVELS)
+    np.testing.assert_allclose(list(shares.values()), LEVELS, atol=0.003)
+    assert shares[0.9] == interval_coverage(estimate, truth, std)
+    narrow = reliability(estimate, truth, std / 2)
+    from statistics import NormalDist
+    half = [2 * NormalDist().cdf(NormalDist().inv_cdf(0.5 + level / 2) / 2) - 1 for level in LEVELS]
+    np.testing.assert_allclose(list(narrow.values()), half, atol=0.003)
+    with pytest.raises(ValueError, match=r"levels must lie in \(0, 1\)"):
+        reliability(estimate, truth, std, (0.5, 1.0))

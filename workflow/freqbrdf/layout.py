@@ -64,6 +64,7 @@ VIEW_SELECTION = "results/view_selection/{object}/{env}/{poses}/{name}"
 # Evaluation, report and exports (rules/evaluate.smk, rules/report.smk, rules/export.smk)
 METRICS = "results/tables/metrics.csv"
 SPARSIFICATION = "results/tables/sparsification.tsv"  # the curves behind the ause_* metrics
+RELIABILITY = "results/tables/reliability.tsv"  # the posterior's coverage at several nominal levels
 TABLE = "results/tables/{name}"
 FIGURE = "results/figures/{name}"
 CAPTURE_FIGURE = "results/figures/{object}/{env}/{poses}/{name}"

@@ -30,6 +30,7 @@ rule metrics:
             labels={"table": "metrics.csv (every number)"},
         ),
         sparsification=layout.SPARSIFICATION,
+        reliability=layout.RELIABILITY,
     log:
         layout.log("metrics"),
     benchmark:

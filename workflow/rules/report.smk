@@ -156,16 +156,24 @@ rule relight_figure:
 
 rule uncertainty_figure:
     """Sparsification curves of freq's per-texel error under the entropy and the trivial
-    uncertainty baselines, one panel per capture (issue 33)."""
+    uncertainty baselines, one panel per capture (issue 33); the reliability diagram of
+    freq's posterior, one panel per parameter (issue 50)."""
     input:
         curves=layout.SPARSIFICATION,
+        reliability=layout.RELIABILITY,
         code=library("uncertainty_figure"),
     output:
-        report(
+        sparsification=report(
             fill(layout.FIGURE, name="uncertainty.png"),
             category="Tables",
             caption="../report/uncertainty.rst",
             labels={"table": "sparsification curves (freq)"},
+        ),
+        reliability=report(
+            fill(layout.FIGURE, name="reliability.png"),
+            category="Tables",
+            caption="../report/reliability.rst",
+            labels={"table": "reliability of the posterior (freq)"},
         ),
     log:
         layout.log("uncertainty_figure"),

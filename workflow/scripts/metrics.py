@@ -21,8 +21,8 @@ from freqbrdf.report.metrics import (PARAMETER_COLUMNS, base_color_si_scores, br
                                      last_epoch_change, parameter_error_map, pearson,
                                      texel_parameter_columns, time_to_reach)
 from freqbrdf.estimate.optimise.posterior import expected_error
-from freqbrdf.report.sparsification import (baseline_maps, interval_coverage, partial_pearson, sparsification_curves,
-                                             uncertainty_scores)
+from freqbrdf.report.sparsification import (baseline_maps, interval_coverage, partial_pearson, reliability,
+                                             sparsification_curves, uncertainty_scores)
 from freqbrdf.report.tables.tidy import TIDY_COLUMNS
 from freqbrdf.report.relight_metrics import RELIGHT_METRICS, HdrScoring, relight_view_scores, scored_pixels
 
@@ -55,7 +55,7 @@ def parameter_rows(smk):
         rows.append(dict(object=obj, env=env, poses=poses, method="", relight_env="", metric="mean_entropy",
                          value=float(entropy.mean())))
     baselines = cache(lambda key: baseline_maps(observations(key)))
-    curves = []
+    curves, calibration = [], []
     for (obj, env, poses, method), directory in keyed(p.synthetic, smk.input.estimates).items():
         estimate, texels = read_svbrdf(directory), scored((obj, env, poses))
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")
@@ -72,26 +72,30 @@ def parameter_rows(smk):
             rows.append(key | dict(metric="partial_pearson_entropy_error_views", value=partial_pearson(entropy, error, views)))
             maps = {"entropy": entropy, **baselines((obj, env, poses))}
             if METHODS[method].has_posterior:
-                posterior, coverage = posterior_rows(directory, truth(obj), estimate, texels)
+                posterior, coverage, levels = posterior_rows(directory, truth(obj), estimate, texels)
                 maps["posterior"] = posterior
                 rows.append(key | dict(metric="mean_posterior_error", value=float(posterior.mean())))
                 rows.append(key | dict(metric="partial_pearson_posterior_error_views",
                                        value=partial_pearson(posterior, error, views)))
                 rows += [key | dict(metric=f"coverage90_{name}", value=value) for name, value in coverage.items()]
+                calibration += [dict(object=obj, env=env, poses=poses, method=method, parameter=name, level=level,
+                                     coverage=value) for name, shares in levels.items() for level, value in shares.items()]
             errors = {"parameter": error, "brdf": brdf_error}
             rows += [key | dict(metric=name, value=value) for name, value in uncertainty_scores(maps, errors).items()]
             curves += [dict(object=obj, env=env, poses=poses, method=method) | record
                        for record in sparsification_curves(maps, errors)]
-    return rows, curves
+    return rows, curves, calibration
 
 
 def posterior_rows(directory, truth, estimate, texels):
-    """The expected squared parameter error of each scored texel under its fit's posterior, and
-    the coverage of the 90% intervals per texture and over all (``all``)."""
+    """The expected squared parameter error of each scored texel under its fit's posterior, the
+    coverage of the 90% intervals per texture and over all (``all``), and per texture and over all
+    the coverage at each level of the reliability diagram (`reliability`)."""
     est, tru, std = (texel_parameter_columns(a, texels) for a in (estimate, truth, read_posterior_std(directory)))
-    coverage = {g: interval_coverage(est[:, c], tru[:, c], std[:, c]) for g, c in PARAMETER_COLUMNS.items()}
-    coverage["all"] = interval_coverage(est, tru, std)
-    return expected_error(std**2), coverage
+    columns = dict(PARAMETER_COLUMNS, all=slice(None))
+    coverage = {g: interval_coverage(est[:, c], tru[:, c], std[:, c]) for g, c in columns.items()}
+    levels = {g: reliability(est[:, c], tru[:, c], std[:, c]) for g, c in columns.items()}
+    return expected_error(std**2), coverage, levels
 
 
 def reference_views(test, min_coverage):
@@ -232,7 +236,7 @@ def agreement_rows(smk):
 
 
 def main(smk, log):
-    rows, curves = parameter_rows(smk)
+    rows, curves, calibration = parameter_rows(smk)
     rows += relight_rows(smk, log) + timing_rows(smk)
     rows += equal_accuracy_rows(smk, rows, log) + views_rows(smk) + agreement_rows(smk)
     table = pd.DataFrame(rows, columns=COLUMNS)
@@ -240,6 +244,9 @@ def main(smk, log):
         table.to_csv(tmp, index=False, float_format="%.6g")
     with atomic_path(smk.output.sparsification) as tmp:
         pd.DataFrame(curves, columns=["object", "env", "poses", "method", "error", "map", "fraction", "value"]).to_csv(
+            tmp, sep="\t", index=False, float_format="%.6g")
+    with atomic_path(smk.output.reliability) as tmp:
+        pd.DataFrame(calibration, columns=["object", "env", "poses", "method", "parameter", "level", "coverage"]).to_csv(
             tmp, sep="\t", index=False, float_format="%.6g")
     summary = table[table.metric.isin(["mse_average", "psnr_h", "time_total_s"]) & table.view.fillna("").eq("")]
     log.info("means over captures (and relight environments):\n%s",

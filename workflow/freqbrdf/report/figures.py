@@ -529,3 +529,34 @@ def sparsification_figure(path: str | os.PathLike, curves: pd.DataFrame, method:
     axes[0, 0].set_ylabel(f"mean {error} error of the rest (relative)")
     axes[0, -1].legend(fontsize=8)
     save_figure(fig, path)
+
+
+def reliability_figure(path: str | os.PathLike, table: pd.DataFrame, method: str) -> None:
+    """Reliability diagram of a method's posterior: observed against nominal coverage of its
+    central intervals, one line per capture, one panel per parameter (the diagonal: calibrated).
+
+    Parameters
+    ----------
+    table : DataFrame
+        ``object, env, poses, method, parameter, level, coverage`` (rule metrics' reliability.tsv).
+    method : str
+        Whose posterior.
+    """
+    rows = table[table.method == method]
+    if rows.empty:
+        raise ValueError(f"no reliability rows of method {method!r}")
+    parameters = list(dict.fromkeys(rows.parameter))
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(parameters), figsize=(2.8 * len(parameters), 3.0), squeeze=False,
+                             sharey=True, layout="constrained")
+    for ax, parameter in zip(axes[0], parameters):
+        own = rows[rows.parameter == parameter]
+        for (obj, env), curve in own.groupby(["object", "env"], sort=False):
+            ax.plot(curve.level, curve.coverage, marker="o", markersize=3, label=f"{obj} / {env}")
+        ax.plot([0, 1], [0, 1], color="grey", linestyle="--", linewidth=0.8)
+        ax.set(xlim=(0.45, 1.0), ylim=(min(0.45, float(rows.coverage.min()) - 0.02), 1.0), title=parameter,
+               xlabel="nominal coverage")
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("observed coverage")
+    axes[0, -1].legend(fontsize=7)
+    save_figure(fig, path)

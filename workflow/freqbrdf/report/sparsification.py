@@ -16,6 +16,7 @@ in random order among themselves, so a curve does not depend on how a sort break
 from __future__ import annotations
 
 from collections.abc import Mapping
+from statistics import NormalDist
 
 import numpy as np
 
@@ -166,9 +167,13 @@ def _checked(uncertainty: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np
     return u, e
 
 
-def interval_coverage(estimate: np.ndarray, truth: np.ndarray, std: np.ndarray, z: float = 1.645) -> float:
+# Half-width of a Gaussian's central 90% interval in standard deviations (1.6449).
+Z90 = NormalDist().inv_cdf(0.95)
+
+
+def interval_coverage(estimate: np.ndarray, truth: np.ndarray, std: np.ndarray, z: float = Z90) -> float:
     """Fraction of the values whose truth lies within ``z`` posterior standard deviations of the
-    estimate (``z`` 1.645: the central 90% interval of a Gaussian), over every element given.
+    estimate (``z`` `Z90`: the central 90% interval of a Gaussian), over every element given.
 
     Parameters
     ----------
@@ -182,3 +187,31 @@ def interval_coverage(estimate: np.ndarray, truth: np.ndarray, std: np.ndarray, 
         raise ValueError(f"interval_coverage: shapes {estimate.shape}, {truth.shape}, {std.shape} must agree and be non-empty")
     return float(np.mean(np.abs(estimate - truth) <= z * std))
 
+
+# Nominal levels of the reliability diagram: a calibrated posterior's central intervals hold these shares.
+LEVELS = (0.5, 0.68, 0.8, 0.9, 0.95, 0.99)
+
+
+def reliability(estimate: np.ndarray, truth: np.ndarray, std: np.ndarray,
+                levels: tuple[float, ...] = LEVELS) -> dict[float, float]:
+    """Observed coverage of the posterior's central Gaussian intervals at each nominal level.
+
+    A calibrated posterior gives coverage equal to the level at every level (the diagonal of a
+    reliability diagram); too narrow intervals fall below it. At 0.9 this is `interval_coverage`.
+
+    Parameters
+    ----------
+    estimate, truth, std : numpy.ndarray
+        The same shape: estimated values, true values, standard deviations (> 0).
+    levels : tuple of float
+        Nominal coverages in (0, 1).
+
+    Returns
+    -------
+    dict of float to float
+        Level -> share of the values whose truth lies within the level's interval.
+    """
+    if not all(0.0 < level < 1.0 for level in levels):
+        raise ValueError(f"reliability: levels must lie in (0, 1), got {levels}")
+    return {level: interval_coverage(estimate, truth, std, NormalDist().inv_cdf(0.5 + level / 2))
+            for level in levels}
