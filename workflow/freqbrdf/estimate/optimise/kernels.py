@@ -8,7 +8,8 @@ evaluation: `freqbrdf.sphere.sh.real_sh` (degree sums), a direct evaluation of t
 central differences (loss and gradient), dense quadrature of the environment (shadowing
 factors, through `freqbrdf.estimate.light.shadowed_light`). The kernels are compiled on first
 use and cached on disk (numba ``cache=True``), so only the first job on a machine pays the
-compile.
+compile; each kernel's first call in a process waits for the others' (`freqbrdf.util.compile_once`),
+so jobs that start together on an empty cache compile once, not each.
 
 What travels together is bundled: `PairData` (the observed pairs, from
 `freqbrdf.estimate.optimise.problem.Problem.pair_data`), `KernelModel` (which model: masking,
@@ -25,6 +26,7 @@ import numpy as np
 
 from freqbrdf.estimate.optimise import compiled, compiled_light, compiled_steps
 from freqbrdf.sphere.brdf import ALPHA_MIN, R0_DIELECTRIC
+from freqbrdf.util.compile_once import first_call_locked
 
 __all__ = ["PairData", "KernelModel", "LmStep", "degree_sums", "shadowing_factors", "basis_factors", "table_sums", "l1_loss_gradient",
            "grid_search", "lm_sweep", "tv_loss_gradient", "adam_update", "texel_information",
@@ -144,7 +146,7 @@ def degree_sums(
     """
     if out.shape[2] != 3 or lg.shape[2] != 3:
         raise ValueError(f"degree_sums needs RGB expansions, got lg {lg.shape} and out {out.shape}")
-    compiled_light.degree_sums_kernel(lg, rows, pairs, mirror, a, b, out)
+    first_call_locked(compiled_light.degree_sums_kernel, lg, rows, pairs, mirror, a, b, out)
 
 
 def shadowing_factors(normals: np.ndarray, directions: np.ndarray, alpha: np.ndarray, out: np.ndarray) -> None:
@@ -165,7 +167,7 @@ def shadowing_factors(normals: np.ndarray, directions: np.ndarray, alpha: np.nda
     out : numpy.ndarray
         Shape ``(T, Q)``, float32, written in place.
     """
-    compiled_light.shadowing_kernel(normals, directions, alpha, out)
+    first_call_locked(compiled_light.shadowing_kernel, normals, directions, alpha, out)
 
 
 def basis_factors(normals: np.ndarray, directions: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
@@ -183,7 +185,7 @@ def basis_factors(normals: np.ndarray, directions: np.ndarray, u: np.ndarray, ou
     out : numpy.ndarray
         Shape ``(T R, Q)``, float32, written in place: row ``t R + k`` is ``u_k`` of normal t.
     """
-    compiled_light.basis_factors_kernel(normals, directions, u, out)
+    first_call_locked(compiled_light.basis_factors_kernel, normals, directions, u, out)
 
 
 def table_sums(
@@ -216,7 +218,7 @@ def table_sums(
     if out.shape[2] != 3 or coefficients.shape[2] != 3 * out.shape[1] ** 2:
         raise ValueError(f"table_sums needs RGB coefficients of degree {out.shape[1] - 1}, got rows of "
                          f"{coefficients.shape[2]} for output of shape {out.shape}")
-    compiled_light.table_sums_kernel(coefficients, corner, corner_weight, v, slots, start, mirror, a, b, out)
+    first_call_locked(compiled_light.table_sums_kernel, coefficients, corner, corner_weight, v, slots, start, mirror, a, b, out)
 
 
 def _table(lobe: np.ndarray | None, terms: np.ndarray) -> np.ndarray:
@@ -307,7 +309,7 @@ def l1_loss_gradient(
     """
     grad = np.empty((x.shape[0], 5))
     loss = np.empty(x.shape[0])
-    compiled.l1_kernel(x, *_arguments(terms, pairs, model), grad, loss, np.empty((0, 3)) if out is None else out)
+    first_call_locked(compiled.l1_kernel, x, *_arguments(terms, pairs, model), grad, loss, np.empty((0, 3)) if out is None else out)
     return loss, grad
 
 
@@ -337,7 +339,7 @@ def texel_information(
     """
     info = np.empty((x.shape[0], 5, 5))
     squares = np.empty(x.shape[0])
-    compiled.information_kernel(np.ascontiguousarray(x, dtype=np.float64), *_arguments(terms, pairs, model), info,
+    first_call_locked(compiled.information_kernel, np.ascontiguousarray(x, dtype=np.float64), *_arguments(terms, pairs, model), info,
                                 squares)
     return info, squares
 
@@ -365,7 +367,7 @@ def grid_search(
         Shape ``(S, 5)``, float64: base colour RGB, roughness, metallic.
     """
     out = np.zeros((pairs.start.shape[0] - 1, 5))
-    compiled.grid_kernel(*_arguments(terms, pairs, model), np.asarray(roughness, dtype=np.float64),
+    first_call_locked(compiled.grid_kernel, *_arguments(terms, pairs, model), np.asarray(roughness, dtype=np.float64),
                          np.asarray(metallic, dtype=np.float64), int(np.diff(pairs.start).max(initial=0)), out)
     return out
 
@@ -418,7 +420,7 @@ def lm_sweep(
     """
     nb_start, nb = neighbours
     cost = np.empty(texels.shape[0])
-    compiled.lm_kernel(x, texels, *_arguments(terms, pairs, model, texels), nb_start, nb, float(step.data_scale),
+    first_call_locked(compiled.lm_kernel, x, texels, *_arguments(terms, pairs, model, texels), nb_start, nb, float(step.data_scale),
                        float(step.tv_scale), step.lower, step.upper, float(step.irls_floor), float(step.tv_floor), lam,
                        int(step.tries), cost)
     return cost
@@ -448,7 +450,7 @@ def tv_loss_gradient(x: np.ndarray, edges: np.ndarray) -> tuple[float, np.ndarra
     if edges.min() < 0 or edges.max() >= x.shape[0]:
         raise ValueError(f"edges must index the {x.shape[0]} rows of x, got {edges.min()}..{edges.max()}")
     grad = np.empty_like(x)
-    return float(compiled_steps.tv_kernel(x, edges, grad)), grad
+    return float(first_call_locked(compiled_steps.tv_kernel, x, edges, grad)), grad
 
 
 def adam_update(
@@ -482,7 +484,7 @@ def adam_update(
     if floor.shape != x.shape[1:]:
         raise ValueError(f"adam_update: floor must have shape {x.shape[1:]}, got {floor.shape}")
     b1, b2 = betas
-    compiled_steps.adam_kernel(x, grad, m1, m2, float(lr), 1.0 - b1**step, 1.0 - b2**step, float(b1), float(b2),
+    first_call_locked(compiled_steps.adam_kernel, x, grad, m1, m2, float(lr), 1.0 - b1**step, 1.0 - b2**step, float(b1), float(b2),
                          float(eps), floor)
 
 
@@ -492,4 +494,4 @@ def source_geometry(wo: np.ndarray, incoming: np.ndarray, slot: np.ndarray, out:
     (0 where the source or the view is below the horizon) of every pair and source, in one pass
     instead of NumPy's temporaries per source; ``wo`` (N, 3), ``incoming`` (T, S, 3)
     float64 and ``slot`` (N,) int64, C-contiguous, checked by the caller."""
-    compiled_steps.source_geometry_kernel(wo, incoming, slot, out)
+    first_call_locked(compiled_steps.source_geometry_kernel, wo, incoming, slot, out)
