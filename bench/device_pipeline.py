@@ -15,7 +15,7 @@ embedded default unless ``--configfile``) with ``mitsuba.variant: cuda_ad_rgb`` 
 ``results/`` (the asset package travels in ``results/resources``), stops it after ``--budget``
 seconds if it has not ended, and writes under ``--out``: ``device_env.txt`` (GPU, CPU, package
 versions), ``device_rules.tsv`` (per rule: jobs, summed job seconds and their share, the longest
-job), ``device_jobs.tsv`` (every job's ``benchmark:`` line), ``snakemake.log`` and
+job), ``device_jobs.tsv`` (every job's time and CPU time, `run_cost.job_costs`), ``snakemake.log`` and
 ``device_results.tar.gz`` (tables, logs, benchmarks, run config).
 
     python bench/device_pipeline.py pack --out bench/out/device_site.tar.xz
@@ -40,6 +40,7 @@ import zipfile
 from pathlib import Path
 
 import pandas as pd
+from run_cost import job_costs
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -186,17 +187,6 @@ def _environment(python: str, env: dict[str, str]) -> str:
     return "".join(lines)
 
 
-def _jobs(results: Path) -> pd.DataFrame:
-    """One row per ``benchmark:`` file under ``results/benchmarks``: rule, job and its measurements."""
-    rows = []
-    for path in sorted((results / "benchmarks").rglob("*.tsv")):
-        table = pd.read_csv(path, sep="\t")
-        parts = path.relative_to(results / "benchmarks").parts
-        rule = parts[0] if len(parts) > 1 else path.stem  # a rule with a single job writes benchmarks/<rule>.tsv
-        rows.append({"rule": rule, "job": "/".join(parts[1:]) or path.name, **table.iloc[-1].to_dict()})
-    return pd.DataFrame(rows)
-
-
 def rule_shares(jobs: pd.DataFrame) -> pd.DataFrame:
     """Per rule: jobs, summed job seconds, their share of all jobs' seconds, and the longest job."""
     rules = jobs.groupby("rule")["s"].agg(jobs="size", job_s="sum", longest_s="max")
@@ -244,9 +234,13 @@ def run(site: Path, out: Path, cores: int, budget: float, configfile: Path | Non
             log.write(f"\nstopped by device_pipeline.py after its budget of {budget:.0f} s\n")
     wall = time.perf_counter() - start
     results = REPO / "results"
-    jobs = _jobs(results)
-    jobs.to_csv(out / "device_jobs.tsv", sep="\t", index=False)
-    if len(jobs):
+    try:
+        jobs = job_costs(results / "benchmarks")
+    except ValueError as error:  # no job got as far as its benchmark file
+        print(error)
+        jobs = pd.DataFrame(columns=["rule", "job", "s", "cpu_time"])
+    else:
+        jobs.to_csv(out / "device_jobs.tsv", sep="\t", index=False)
         rule_shares(jobs).to_csv(out / "device_rules.tsv", sep="\t")
     with open(out / "device_env.txt", "a") as env_file:
         env_file.write(f"snakemake exit {code}, wall {wall:.1f} s, {len(jobs)} jobs benchmarked, cores {cores}\n")

@@ -21,20 +21,23 @@ import pandas as pd
 
 
 def job_costs(benchmarks: Path) -> pd.DataFrame:
-    """One row per ``benchmarks/{rule}/{job}.tsv``: rule, job, ``s``, ``cpu_time``.
+    """One row per ``benchmarks/{rule}/{job}.tsv``, or ``benchmarks/{rule}.tsv`` for a rule of one
+    job (`freqbrdf.layout.benchmark`): rule, job, ``s``, ``cpu_time``.
 
     Raises naming the directory if it holds no benchmark file, and the file if it lacks a column.
     """
     rows = []
-    for path in sorted(benchmarks.glob("*/*.tsv")):
+    for path in sorted([*benchmarks.glob("*/*.tsv"), *benchmarks.glob("*.tsv")]):
         table = pd.read_csv(path, sep="\t")
         missing = {"s", "cpu_time"} - set(table.columns)
         if missing or table.empty:
             raise ValueError(f"{path}: not a benchmark file (columns {sorted(table.columns)})")
-        rows.append({"rule": path.parent.name, "job": path.stem, "s": float(table["s"].iloc[-1]),
+        single = path.parent == benchmarks
+        rows.append({"rule": path.stem if single else path.parent.name, "job": "" if single else path.stem,
+                     "s": float(table["s"].iloc[-1]),
                      "cpu_time": float(table["cpu_time"].iloc[-1])})
     if not rows:
-        raise ValueError(f"{benchmarks}: no benchmark files (benchmarks/<rule>/<job>.tsv)")
+        raise ValueError(f"{benchmarks}: no benchmark files (benchmarks/<rule>/<job>.tsv, benchmarks/<rule>.tsv)")
     return pd.DataFrame(rows)
 
 

@@ -22,11 +22,13 @@ def test_costs_sum_per_rule_the_costliest_first(tmp_path: Path) -> None:
     _write(tmp_path / "relight/a.tsv", 2.0, 3.0)
     _write(tmp_path / "relight/b.tsv", 4.0, 5.0)
     _write(tmp_path / "mitsuba/c.tsv", 10.0, 19.0)
+    _write(tmp_path / "metrics.tsv", 1.0, 1.5)  # a rule of one job: benchmarks/<rule>.tsv
     jobs = job_costs(tmp_path)
-    assert len(jobs) == 3
+    assert len(jobs) == 4
     table = rule_costs(jobs)
-    assert list(table.index) == ["mitsuba", "relight"]
+    assert list(table.index) == ["mitsuba", "relight", "metrics"]
     assert table.loc["relight"].tolist() == [2, 6.0, 8.0]
+    assert table.loc["metrics"].tolist() == [1, 1.0, 1.5]
 
 
 def test_a_missing_directory_or_column_is_named(tmp_path: Path) -> None:
