@@ -6,21 +6,21 @@ Two steps, because the GPU machine reaches no package registry and takes at most
 machine's image lacks (`DEVICE_IMAGE`), as CPython 3.12 wheels of the versions installed here
 (the pins of ``workflow/pyproject.toml`` and Snakemake's own), trimmed to what a CUDA run
 loads: Mitsuba's ``cuda_ad_rgb`` and ``scalar_rgb`` variants and the plugins the pipeline's
-scenes name (`MITSUBA_PLUGINS`), no type stubs, headers or tests. Left out: the CPU's LLVM
+scenes name (`MITSUBA_PLUGINS`), no type stubs or headers. Left out: the CPU's LLVM
 (``llvm_ad_rgb`` only) and pycolmap (126 MB unpacked, over the transfer limit with the rest), so
 the run there sets ``poses.evaluate_colmap: false`` and its DAG lacks rule ``colmap_poses``.
 
 ``run`` (there) unpacks it, runs ``snakemake --cores N --resources gpu=1`` on a config (the
 embedded default unless ``--configfile``) with ``mitsuba.variant: cuda_ad_rgb`` into an empty
-``results/`` (the asset package travels in ``results/resources``), stops it after ``--budget``
+results tree (the asset package travels in its resources folder), stops it after ``--budget``
 seconds if it has not ended, and writes under ``--out``: ``device_env.txt`` (GPU, CPU, package
 versions), ``device_rules.tsv`` (per rule: jobs, summed job seconds and their share, the longest
 job), ``device_jobs.tsv`` (every job's time and CPU time, `run_cost.job_costs`), ``snakemake.log`` and
 ``device_results.tar.gz`` (tables, logs, benchmarks, run config).
 
     python bench/device_pipeline.py pack --out bench/out/device_site.tar.xz
-    # on the device, with bench/out/device_site.tar.xz and results/resources carried:
-    python3 bench/device_pipeline.py run --site bench/out/device_site.tar.xz --out "$OUT" --cores 16
+    # on the device, with bench/out/device_site.tar.xz and the results tree's resources folder carried:
+    PYTHONPATH=workflow python3 bench/device_pipeline.py run --site bench/out/device_site.tar.xz --out "$OUT" --cores 16
 """
 
 from __future__ import annotations
@@ -41,6 +41,8 @@ from pathlib import Path
 
 import pandas as pd
 from run_cost import job_costs
+
+from freqbrdf import layout
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -135,7 +137,6 @@ def _trim(site: Path) -> None:
         *site.glob("*.data"),
         site / "mitsuba/include",
         site / "drjit/include",
-        *site.rglob("tests"),
         *site.rglob("__pycache__"),
         site / "pulp/solverdir",
     ]:
@@ -204,8 +205,8 @@ def run(site: Path, out: Path, cores: int, budget: float, configfile: Path | Non
     (out / "device_env.txt").write_text(_environment(sys.executable, env))
     overlay = Path(unpacked, "device.yaml")
     overlay.write_text("mitsuba: {variant: cuda_ad_rgb}\nposes: {evaluate_colmap: false}\n")
-    # The asset package travels in results/resources: newer than its rule's code, it is not fetched again.
-    for tarball in (REPO / "results" / "resources").glob("*.tgz"):
+    # The asset package travels in the resources folder: newer than its rule's code, it is not fetched again.
+    for tarball in (REPO / layout.RESOURCE).parent.glob("*.tgz"):
         tarball.touch()
     configs = ["--configfile", *([str(configfile)] if configfile else []), str(overlay)]
     command = [
@@ -233,7 +234,7 @@ def run(site: Path, out: Path, cores: int, budget: float, configfile: Path | Non
             code = snakemake.wait()
             log.write(f"\nstopped by device_pipeline.py after its budget of {budget:.0f} s\n")
     wall = time.perf_counter() - start
-    results = REPO / "results"
+    results = REPO / layout.RESULTS
     try:
         jobs = job_costs(results / "benchmarks")
     except ValueError as error:  # no job got as far as its benchmark file
