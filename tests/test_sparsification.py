@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from freqbrdf.report.metrics import pearson
-from freqbrdf.report.sparsification import (LEVELS, ause, interval_coverage, partial_pearson, random_ause, reliability,
-                                             sparsification_curve)
+from freqbrdf.report.sparsification import (LEVELS, ause, conformal_widths, gaussian_widths, interval_coverage,
+                                             partial_pearson, random_ause, reliability, sparsification_curve)
 
 
 def test_a_curve_by_hand_including_a_texel_cut_in_half():
@@ -123,4 +123,27 @@ def test_reliability_of_a_calibrated_posterior_is_the_diagonal_and_of_a_narrow_o
     half = [2 * NormalDist().cdf(NormalDist().inv_cdf(0.5 + level / 2) / 2) - 1 for level in LEVELS]
     np.testing.assert_allclose(list(narrow.values()), half, atol=0.003)
     with pytest.raises(ValueError, match=r"levels must lie in \(0, 1\)"):
-        reliability(estimate, truth, std, (0.5, 1.0))
+        reliability(estimate, truth, std, levels=(0.5, 1.0))
+    # given widths: the Gaussian's, per column too, reproduce it
+    np.testing.assert_array_equal(list(reliability(estimate, truth, std, gaussian_widths()).values()),
+                                  list(shares.values()))
+    two = np.column_stack([estimate, estimate])
+    per_column = np.column_stack([gaussian_widths(), np.full(len(LEVELS), 1e9)])  # the second column always in
+    mixed = reliability(two, np.column_stack([truth, truth]), np.column_stack([std, std]), per_column)
+    np.testing.assert_allclose(list(mixed.values()), (np.array(list(shares.values())) + 1) / 2)
+
+
+def test_conformal_widths_are_ranks_and_hold_their_level_on_new_draws():
+    """By hand on five values, then on heavy tails (Student's t, 3 degrees of freedom), where the
+    Gaussian's widths fall short at 99% and the conformal ones hold on fresh draws."""
+    np.testing.assert_array_equal(conformal_widths(np.array([5.0, 1.0, 4.0, 2.0, 3.0]), (0.5, 0.8, 0.99)),
+                                  [3.0, 5.0, 5.0])  # ranks ceil(6 p): 3, 5, 6 -> the largest
+    rng = np.random.default_rng(11)
+    calibration, fresh = (np.abs(rng.standard_t(3, n)) / np.sqrt(3.0) for n in (50_000, 200_000))  # unit variance
+    widths = conformal_widths(calibration)
+    held = reliability(fresh, np.zeros_like(fresh), np.ones_like(fresh), widths)
+    np.testing.assert_allclose(list(held.values()), LEVELS, atol=0.006)
+    gaussian = reliability(fresh, np.zeros_like(fresh), np.ones_like(fresh))
+    assert gaussian[0.99] < 0.985 and gaussian[0.5] > 0.6  # flatter than the diagonal, as the posterior's
+    with pytest.raises(ValueError, match="finite and >= 0"):
+        conformal_widths(np.array([1.0, np.nan]))

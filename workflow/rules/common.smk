@@ -31,7 +31,7 @@ POSE_COMPARE = [p for p in config["poses"]["compare"] if p != POSES]  # further 
 METHODS = list(config["methods"])  # names in freqbrdf.methods.METHODS (checked by check_config)
 # Settings that only change how relit images are scored (metrics, the real captures' scores,
 # the relighting figure): only those rules receive them, so editing one reruns nothing upstream.
-METRIC_KEYS = ["mask_min_coverage", "hdr_clip", "hdr_normalise", "hdr_scale"]
+METRIC_KEYS = ["mask_min_coverage", "hdr_clip", "hdr_normalise", "hdr_scale", "interval_widths"]
 # Every (object, env) pair that has a training capture; synthetic ones have ground truth.
 # The benchmark's captures make the paper's tables; the stress captures their own (rules/stress.smk).
 BENCHMARK_CAPTURES = [(o, e) for o in SYNTHETIC_OBJECTS for e in CAPTURE_ENVS]

@@ -21,12 +21,13 @@ from freqbrdf.report.metrics import (PARAMETER_COLUMNS, base_color_si_scores, br
                                      last_epoch_change, parameter_error_map, pearson,
                                      texel_parameter_columns, time_to_reach)
 from freqbrdf.estimate.optimise.posterior import expected_error
-from freqbrdf.report.sparsification import (baseline_maps, interval_coverage, partial_pearson, reliability,
+from freqbrdf.report.sparsification import (baseline_maps, partial_pearson, reliability,
                                              sparsification_curves, uncertainty_scores)
 from freqbrdf.report.tables.tidy import TIDY_COLUMNS
 from freqbrdf.report.relight_metrics import RELIGHT_METRICS, HdrScoring, relight_view_scores, scored_pixels
 
 COLUMNS = list(TIDY_COLUMNS)
+COVERAGE_LEVEL = 0.9  # coverage90_* in metrics.csv: one of the reliability diagram's levels
 
 
 def keyed(keys, paths, per=1):
@@ -72,7 +73,8 @@ def parameter_rows(smk):
             rows.append(key | dict(metric="partial_pearson_entropy_error_views", value=partial_pearson(entropy, error, views)))
             maps = {"entropy": entropy, **baselines((obj, env, poses))}
             if METHODS[method].has_posterior:
-                posterior, coverage, levels = posterior_rows(directory, truth(obj), estimate, texels)
+                posterior, coverage, levels = posterior_rows(directory, truth(obj), estimate, texels,
+                                                             p.metrics["interval_widths"])
                 maps["posterior"] = posterior
                 rows.append(key | dict(metric="mean_posterior_error", value=float(posterior.mean())))
                 rows.append(key | dict(metric="partial_pearson_posterior_error_views",
@@ -87,15 +89,18 @@ def parameter_rows(smk):
     return rows, curves, calibration
 
 
-def posterior_rows(directory, truth, estimate, texels):
-    """The expected squared parameter error of each scored texel under its fit's posterior, the
-    coverage of the 90% intervals per texture and over all (``all``), and per texture and over all
-    the coverage at each level of the reliability diagram (`reliability`)."""
+def posterior_rows(directory, truth, estimate, texels, widths=None):
+    """The expected squared parameter error of each scored texel under its fit's posterior, and per
+    texture and over all (``all``) the coverage of its central intervals at each level of the
+    reliability diagram (`reliability`), 90% among them; ``widths``: config ``evaluate.interval_widths``."""
     est, tru, std = (texel_parameter_columns(a, texels) for a in (estimate, truth, read_posterior_std(directory)))
+    per_column = None
+    if widths is not None:  # (levels, 5): each parameter column its texture's widths
+        per_column = np.column_stack([widths[g] for g, c in PARAMETER_COLUMNS.items() for _ in range(c.start, c.stop)])
     columns = dict(PARAMETER_COLUMNS, all=slice(None))
-    coverage = {g: interval_coverage(est[:, c], tru[:, c], std[:, c]) for g, c in columns.items()}
-    levels = {g: reliability(est[:, c], tru[:, c], std[:, c]) for g, c in columns.items()}
-    return expected_error(std**2), coverage, levels
+    levels = {g: reliability(est[:, c], tru[:, c], std[:, c], None if per_column is None else per_column[:, c])
+              for g, c in columns.items()}
+    return expected_error(std**2), {g: shares[COVERAGE_LEVEL] for g, shares in levels.items()}, levels
 
 
 def reference_views(test, min_coverage):

@@ -192,26 +192,65 @@ def interval_coverage(estimate: np.ndarray, truth: np.ndarray, std: np.ndarray, 
 LEVELS = (0.5, 0.68, 0.8, 0.9, 0.95, 0.99)
 
 
-def reliability(estimate: np.ndarray, truth: np.ndarray, std: np.ndarray,
+def gaussian_widths(levels: tuple[float, ...] = LEVELS) -> np.ndarray:
+    """Half-widths, in standard deviations, of a Gaussian's central intervals at ``levels``: (L,)."""
+    if not all(0.0 < level < 1.0 for level in levels):
+        raise ValueError(f"levels must lie in (0, 1), got {levels}")
+    return np.array([NormalDist().inv_cdf(0.5 + level / 2) for level in levels])
+
+
+def reliability(estimate: np.ndarray, truth: np.ndarray, std: np.ndarray, widths: np.ndarray | None = None,
                 levels: tuple[float, ...] = LEVELS) -> dict[float, float]:
-    """Observed coverage of the posterior's central Gaussian intervals at each nominal level.
+    """Observed coverage of the posterior's central intervals at each nominal level.
 
     A calibrated posterior gives coverage equal to the level at every level (the diagonal of a
-    reliability diagram); too narrow intervals fall below it. At 0.9 this is `interval_coverage`.
+    reliability diagram); too narrow intervals fall below it. With Gaussian widths this is
+    `interval_coverage` at each level.
 
     Parameters
     ----------
     estimate, truth, std : numpy.ndarray
-        The same shape: estimated values, true values, standard deviations (> 0).
+        The same shape ``(N, C)`` or ``(N,)``: estimated values, true values, standard deviations (> 0).
+    widths : numpy.ndarray, optional
+        Half-width of each level's interval in standard deviations, ``(L,)`` or per column ``(L, C)``
+        (`conformal_widths`); default the Gaussian's (`gaussian_widths`).
     levels : tuple of float
-        Nominal coverages in (0, 1).
+        Nominal coverages in (0, 1), ``L`` of them.
 
     Returns
     -------
     dict of float to float
         Level -> share of the values whose truth lies within the level's interval.
     """
-    if not all(0.0 < level < 1.0 for level in levels):
-        raise ValueError(f"reliability: levels must lie in (0, 1), got {levels}")
-    return {level: interval_coverage(estimate, truth, std, NormalDist().inv_cdf(0.5 + level / 2))
-            for level in levels}
+    widths = gaussian_widths(levels) if widths is None else np.asarray(widths, dtype=np.float64)
+    if widths.shape[0] != len(levels) or not np.all(widths > 0):
+        raise ValueError(f"reliability: widths must be > 0, one row per level {levels}, got {widths.tolist()}")
+    z = np.abs(np.asarray(estimate, dtype=np.float64) - np.asarray(truth, dtype=np.float64)) / np.asarray(std)
+    return {level: float(np.mean(z <= width)) for level, width in zip(levels, widths)}
+
+
+def conformal_widths(standardised: np.ndarray, levels: tuple[float, ...] = LEVELS) -> np.ndarray:
+    """Split-conformal half-widths from calibration errors: for each level p the
+    ``ceil((n + 1) p)``-th smallest of the ``n`` standardised errors ``|estimate - truth| / std``.
+
+    An interval of that many standard deviations holds at least the share p of a new value
+    exchangeable with the calibration ones (Vovk et al. 2005; Lei et al. 2018, Theorem 2.1).
+
+    Parameters
+    ----------
+    standardised : numpy.ndarray
+        ``(n,)``, finite and >= 0.
+    levels : tuple of float
+        Nominal coverages in (0, 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(L,)`` half-widths in standard deviations.
+    """
+    z = np.sort(np.asarray(standardised, dtype=np.float64).ravel())
+    if z.size == 0 or not np.all(np.isfinite(z)) or z[0] < 0:
+        raise ValueError(f"conformal_widths: standardised errors must be finite and >= 0, got {z.size} values")
+    gaussian_widths(levels)  # checks the levels
+    ranks = np.minimum(np.ceil((z.size + 1) * np.asarray(levels)).astype(int), z.size)
+    return z[ranks - 1]
