@@ -261,6 +261,19 @@ def test_snakemake_report_follows_the_recorded_config_unless_given_one(repo, tmp
     assert "config key" not in given.stdout + given.stderr and "last run" not in given.stdout + given.stderr
 
 
+def test_a_report_of_targets_short_of_the_tables_builds_and_says_it_has_no_summary(repo, tmp_path):
+    """`snakemake --report r.html TARGET` after a targeted run failed on the landing page's include of
+    the run summary, which rule tables writes: the page now includes it only where the tables are
+    in the report, and says otherwise."""
+    report = tmp_path / "r.html"
+    done = subprocess.run([sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"), "-d",
+                           str(tmp_path), "--configfile", str(repo / "config" / "tiny.yaml"), "--report", str(report),
+                           "results/objects/sphere/base_color.exr"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    page = report.read_text()
+    assert "has no summary here" in page and "Headline numbers" not in page  # the summary's second table
+
+
 def test_a_missing_preset_stops_in_one_line_naming_it(repo, tmp_path):
     """Snakemake 9.27.1 answers a --configfile that does not exist with a traceback (its loader
     opens the file outside the try that would say "Config file ... not found.") before the
