@@ -22,7 +22,8 @@ with an empty ``view``). Metric names:
   ``random``) and the oracle's, for the ``parameter`` or ``brdf`` error
   (:mod:`freqbrdf.report.sparsification`); ``partial_pearson_posterior_error_views``;
   ``coverage90_<texture>``, ``coverage90_all``: the share of true values inside the
-  posterior's 90% intervals (:mod:`freqbrdf.estimate.optimise.posterior`);
+  posterior's central 90% intervals, of config ``evaluate.interval_widths``
+  (:func:`freqbrdf.report.sparsification.reliability`);
 - ``time_s``, ``max_rss_mb``, ``time_total_s``, ``speed_ratio_vs_mitsuba``;
 - ``mitsuba_time_to_match_s``, ``mitsuba_reached``, ``speed_ratio_equal_accuracy``:
   for the methods that need the observations, Mitsuba's time to reach their MSE
