@@ -14,8 +14,8 @@ the run there sets ``poses.evaluate_colmap: false`` and its DAG lacks rule ``col
 embedded default unless ``--configfile``) with ``mitsuba.variant: cuda_ad_rgb`` into an empty
 results tree (the asset package travels in its resources folder), stops it after ``--budget``
 seconds if it has not ended, and writes under ``--out``: ``device_env.txt`` (GPU, CPU, package
-versions), ``device_rules.tsv`` (per rule: jobs, summed job seconds and their share, the longest
-job), ``device_jobs.tsv`` (every job's time and CPU time, `run_cost.job_costs`), ``snakemake.log`` and
+versions), ``device_rules.tsv`` (per rule: jobs, summed job and CPU seconds, the longest job, the share of
+the job seconds), ``device_jobs.tsv`` (every job's time and CPU time, `run_cost.job_costs`), ``snakemake.log`` and
 ``device_results.tar.gz`` (tables, logs, benchmarks, run config).
 
     python bench/device_pipeline.py pack --out bench/out/device_site.tar.xz
@@ -40,7 +40,7 @@ import zipfile
 from pathlib import Path
 
 import pandas as pd
-from run_cost import job_costs
+from run_cost import job_costs, rule_costs
 
 from freqbrdf import layout
 
@@ -189,10 +189,11 @@ def _environment(python: str, env: dict[str, str]) -> str:
 
 
 def rule_shares(jobs: pd.DataFrame) -> pd.DataFrame:
-    """Per rule: jobs, summed job seconds, their share of all jobs' seconds, and the longest job."""
-    rules = jobs.groupby("rule")["s"].agg(jobs="size", job_s="sum", longest_s="max")
-    rules["share"] = rules["job_s"] / rules["job_s"].sum()
-    return rules.sort_values("job_s", ascending=False).round(3)
+    """`run_cost.rule_costs` with each rule's longest job and its share of all jobs' seconds."""
+    rules = rule_costs(jobs)
+    rules["longest_s"] = jobs.groupby("rule")["s"].max()
+    rules["share"] = rules["s"] / rules["s"].sum()
+    return rules.round(3)
 
 
 def run(site: Path, out: Path, cores: int, budget: float, configfile: Path | None) -> int:

@@ -31,9 +31,8 @@ RULES = ("gaussian", "pooled", "worst")
 
 def widths_of(rule: str, errors: list[np.ndarray]) -> np.ndarray:
     """``(L, 5)`` half-widths per parameter column from calibration captures' standardised errors ``(T_i, 5)``."""
-    columns = {g: c for g, c in PARAMETER_COLUMNS.items()}
     out = np.empty((len(LEVELS), 5))
-    for c in columns.values():
+    for c in PARAMETER_COLUMNS.values():
         if rule == "gaussian":
             w = gaussian_widths()
         elif rule == "pooled":

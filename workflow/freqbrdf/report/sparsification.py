@@ -167,35 +167,18 @@ def _checked(uncertainty: np.ndarray, error: np.ndarray) -> tuple[np.ndarray, np
     return u, e
 
 
-# Half-width of a Gaussian's central 90% interval in standard deviations (1.6449).
-Z90 = NormalDist().inv_cdf(0.95)
-
-
-def interval_coverage(estimate: np.ndarray, truth: np.ndarray, std: np.ndarray, z: float = Z90) -> float:
-    """Fraction of the values whose truth lies within ``z`` posterior standard deviations of the
-    estimate (``z`` `Z90`: the central 90% interval of a Gaussian), over every element given.
-
-    Parameters
-    ----------
-    estimate, truth, std : numpy.ndarray
-        The same shape: estimated values, true values, standard deviations (> 0).
-    z : float
-        Half-width of the interval in standard deviations.
-    """
-    estimate, truth, std = (np.asarray(a, dtype=np.float64) for a in (estimate, truth, std))
-    if not (estimate.shape == truth.shape == std.shape) or estimate.size == 0:
-        raise ValueError(f"interval_coverage: shapes {estimate.shape}, {truth.shape}, {std.shape} must agree and be non-empty")
-    return float(np.mean(np.abs(estimate - truth) <= z * std))
-
-
 # Nominal levels of the reliability diagram: a calibrated posterior's central intervals hold these shares.
 LEVELS = (0.5, 0.68, 0.8, 0.9, 0.95, 0.99)
 
 
-def gaussian_widths(levels: tuple[float, ...] = LEVELS) -> np.ndarray:
-    """Half-widths, in standard deviations, of a Gaussian's central intervals at ``levels``: (L,)."""
+def _check_levels(levels: tuple[float, ...]) -> None:
     if not all(0.0 < level < 1.0 for level in levels):
         raise ValueError(f"levels must lie in (0, 1), got {levels}")
+
+
+def gaussian_widths(levels: tuple[float, ...] = LEVELS) -> np.ndarray:
+    """Half-widths, in standard deviations, of a Gaussian's central intervals at ``levels``: (L,)."""
+    _check_levels(levels)
     return np.array([NormalDist().inv_cdf(0.5 + level / 2) for level in levels])
 
 
@@ -204,8 +187,7 @@ def reliability(estimate: np.ndarray, truth: np.ndarray, std: np.ndarray, widths
     """Observed coverage of the posterior's central intervals at each nominal level.
 
     A calibrated posterior gives coverage equal to the level at every level (the diagonal of a
-    reliability diagram); too narrow intervals fall below it. With Gaussian widths this is
-    `interval_coverage` at each level.
+    reliability diagram); too narrow intervals fall below it.
 
     Parameters
     ----------
@@ -251,6 +233,6 @@ def conformal_widths(standardised: np.ndarray, levels: tuple[float, ...] = LEVEL
     z = np.sort(np.asarray(standardised, dtype=np.float64).ravel())
     if z.size == 0 or not np.all(np.isfinite(z)) or z[0] < 0:
         raise ValueError(f"conformal_widths: standardised errors must be finite and >= 0, got {z.size} values")
-    gaussian_widths(levels)  # checks the levels
+    _check_levels(levels)
     ranks = np.minimum(np.ceil((z.size + 1) * np.asarray(levels)).astype(int), z.size)
     return z[ranks - 1]

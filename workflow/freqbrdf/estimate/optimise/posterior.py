@@ -162,7 +162,6 @@ def laplace_variance(radiance, xp: np.ndarray, observed: np.ndarray, start: np.n
     numpy.ndarray
         Shape ``(T_obs, 5)``, float64: variances of base R, G, B, roughness, metallic.
     """
-    _check_scale(variance_scale)
     model, jacobian = model_jacobian(radiance, xp, start)
     n_obs = start.shape[0] - 1
     squares = np.bincount(np.repeat(np.arange(n_obs), np.diff(start)),
