@@ -97,9 +97,10 @@ def test_two_steps_lower_the_loss_and_change_the_textures(mi, capture):
     assert change[..., 0].max() > 0.05 and change[..., 1].min() < -0.05 and change[..., 2].min() < -0.05
 
 
-def test_recovers_a_uniform_material_from_the_constant_start(mi, capture):
+@pytest.mark.parametrize("crop", [False, True])
+def test_recovers_a_uniform_material_from_the_constant_start(mi, capture, crop):
     start = inv.constant_textures(TEXELS)
-    result, reports = run(mi, capture, start, views=range(6), epochs=16, spp=16, lr=0.05)
+    result, reports = run(mi, capture, start, views=range(6), epochs=16, spp=16, lr=0.05, crop=crop)
     before, after = parameter_mse(start), parameter_mse(result.textures)
     # Measured: base colour 0.148 -> 0.002, roughness 0.040 -> 0.019, metallic 0.25 -> 0.008.
     assert after["base_color"] < before["base_color"] / 20
@@ -163,6 +164,48 @@ def test_sensor_reproduces_an_off_centre_principal_point(mi, capture):
     f = intrinsics(size, size, FOV)[0, 0]
     radius = f * np.tan(np.arcsin(1.0 / 4.0))
     assert coverage.sum() == pytest.approx(np.pi * radius**2, rel=0.03)
+
+
+def test_crop_windows_are_one_size_and_hold_every_weighted_pixel():
+    rng = np.random.default_rng(5)
+    weights = np.zeros((6, 40, 50), np.float32)
+    for k, (y, x, h, w) in enumerate([(0, 0, 5, 7), (30, 40, 10, 10), (12, 20, 3, 25), (1, 44, 20, 6),
+                                      (35, 0, 5, 3), (18, 18, 4, 4)]):
+        weights[k, y:y + h, x:x + w] = rng.uniform(0.1, 1.0, (h, w))
+    windows = inv.crop_windows(weights)
+    assert windows.size == (25, 20)  # the widest box's width, the tallest box's height
+    w, h = windows.size
+    for k, (x, y) in enumerate(windows.offsets):
+        assert 0 <= x <= 50 - w and 0 <= y <= 40 - h
+        assert weights[k, y:y + h, x:x + w].sum() == pytest.approx(weights[k].sum())
+    assert windows.take(weights).shape == (6, 20, 25)
+    weights[2] = 0.0
+    with pytest.raises(ValueError, match="view 2 has no pixel"):
+        inv.crop_windows(weights)
+
+
+def test_a_cropped_render_is_the_whole_render_inside_its_window(mi, capture):
+    # The object's coverage (0 or 1 away from its silhouette) of an off-centre view, rendered
+    # whole and in its window: the same pixels up to the silhouette's sampling noise, and far
+    # from them one pixel off.
+    size = 48
+    cameras = ring_cameras(size, 28.0, 26.0)
+    scene = mask_scene(mi, capture["mesh"], width=size, height=size, fov_x_deg=FOV, spp=256)
+    params = mi.traverse(scene)
+    for key, value in inv.sensor_views(mi, cameras)[0].items():
+        params[key] = value
+    params.update()
+    whole = np.array(mi.render(scene, params, seed=1))[..., 0]
+    windows = inv.crop_windows(whole[None])
+    (x, y), (w, h) = windows.offsets[0], windows.size
+    assert x > 0 and y > 0 and w * h < 0.75 * size * size
+    for key, value in windows.sensor(mi, 0).items():
+        params[key] = value
+    params.update()
+    cropped = np.array(mi.render(scene, params, seed=2))[..., 0]
+    assert cropped.shape == (h, w)
+    assert np.abs(cropped - whole[y:y + h, x:x + w]).mean() < 0.01
+    assert np.abs(cropped - whole[y + 1:y + 1 + h, x:x + w]).mean() > 0.03
 
 
 def test_non_square_pixels_are_refused_naming_the_view():

@@ -19,7 +19,8 @@ over its views of
 
 plus the regulariser, with ``w`` the object-coverage mask of the view
 (background pixels show the environment and carry no information about the
-material; NaN/Inf pixels of the capture get weight 0) and ``d`` one of
+material; NaN/Inf pixels of the capture get weight 0; with ``crop`` a step renders only a
+window around the pixels of weight > 0, :func:`crop_windows`) and ``d`` one of
 ``|log(1 + I) - log(1 + I')|`` (``l1log``: the log compression of the
 authors' reference code keeps bright highlights from dominating; its extra
 gamma curve is left out because its slope is infinite at black, where a noisy
@@ -70,8 +71,9 @@ from freqbrdf.scene.render import capture_scene, principled_bsdf
 _PARAM_KEYS = {name: f"object.bsdf.{name}.data" for name in TEXTURES}
 _CHANNELS = {"base_color": 3, "roughness": 1, "metallic": 1}
 
-__all__ = ["LOSSES", "LR_DECAYS", "EpochReport", "InverseResult", "InverseSettings", "check_textures",
-           "coarse_textures", "constant_textures", "image_loss", "inverse_scene", "lr_factor", "optimise_textures", "render_seeds",
+__all__ = ["LOSSES", "LR_DECAYS", "CropWindows", "EpochReport", "InverseResult", "InverseSettings", "check_textures",
+           "coarse_textures", "constant_textures", "crop_windows", "image_loss", "inverse_scene", "lr_factor",
+           "optimise_textures", "render_seeds",
            "sensor_intrinsics", "sensor_views", "step_table", "stop_epoch", "texture_regulariser", "total_variation",
            "view_order"]
 
@@ -350,12 +352,81 @@ def texture_regulariser(mi: ModuleType, textures: Mapping[str, object],
 
 
 @dataclass(frozen=True)
+class CropWindows:
+    """The window of each view that a step renders: one size for every view, so that Dr.Jit
+    compiles the render kernels once, and an offset per view.
+
+    Attributes
+    ----------
+    offsets : ndarray, shape (K, 2), int
+        Column and row of each window's first pixel.
+    size : tuple of int
+        Width and height of the windows, pixels.
+    """
+
+    offsets: np.ndarray
+    size: tuple[int, int]
+
+    def sensor(self, mi: ModuleType, k: int) -> dict[str, object]:
+        """Mitsuba's film crop of view k, to assign to ``mi.traverse(scene)`` with its sensor."""
+        x, y = (int(v) for v in self.offsets[k])
+        return {"sensor.film.crop_offset": mi.ScalarPoint2u(x, y),
+                "sensor.film.crop_size": mi.ScalarVector2u(*self.size)}
+
+    def take(self, images: np.ndarray) -> np.ndarray:
+        """Each view's window of ``images`` (K, H, W, ...) -> (K, h, w, ...), contiguous."""
+        w, h = self.size
+        return np.stack([images[k, y:y + h, x:x + w] for k, (x, y) in enumerate(self.offsets)])
+
+
+def crop_windows(weights: np.ndarray) -> CropWindows:
+    """The smallest window size that holds every view's pixels of weight > 0, and each view's offset.
+
+    The size is the largest bounding box's width and height over the views; each window is
+    centred on its view's box and moved inside the image where it would cross an edge (it
+    still holds the box, which is no larger than it).
+
+    Parameters
+    ----------
+    weights : ndarray, shape (K, H, W)
+        Per-pixel loss weights (:func:`optimise_textures`); every view has some weight > 0.
+
+    Returns
+    -------
+    CropWindows
+    """
+    weights = np.asarray(weights)
+    boxes = []
+    for k, view in enumerate(weights):
+        rows, cols = np.nonzero(np.any(view > 0, axis=1))[0], np.nonzero(np.any(view > 0, axis=0))[0]
+        if not len(rows):
+            raise ValueError(f"crop_windows: view {k} has no pixel of weight > 0")
+        boxes.append((cols[0], rows[0], cols[-1] + 1 - cols[0], rows[-1] + 1 - rows[0]))
+    boxes = np.asarray(boxes, dtype=np.int64)
+    height, width = weights.shape[1:3]
+    w, h = int(boxes[:, 2].max()), int(boxes[:, 3].max())
+    x = np.clip(boxes[:, 0] - (w - boxes[:, 2]) // 2, 0, width - w)
+    y = np.clip(boxes[:, 1] - (h - boxes[:, 3]) // 2, 0, height - h)
+    return CropWindows(offsets=np.stack([x, y], axis=1), size=(w, h))
+
+
+@dataclass(frozen=True)
 class _Views:
-    """The training views as the steps use them: sensor parameters, images and weights (K, H, W, 3 and K, H, W)."""
+    """The training views as the steps use them: sensor parameters (the film's crop among them
+    when cropped), images and weights (K, h, w, 3 and K, h, w: the rendered windows)."""
 
     sensors: list[dict[str, object]]
     images: np.ndarray
     weights: np.ndarray
+
+    @classmethod
+    def of(cls, mi: ModuleType, cameras: Cameras, images: np.ndarray, weights: np.ndarray, crop: bool) -> _Views:
+        sensors = sensor_views(mi, cameras)
+        if not crop:
+            return cls(sensors, images, weights)
+        windows = crop_windows(weights)
+        return cls([view | windows.sensor(mi, k) for k, view in enumerate(sensors)], windows.take(images),
+                   windows.take(weights))
 
 
 def _set_learning_rates(opt, rates: float | Mapping[str, float]) -> None:
@@ -493,7 +564,7 @@ def optimise_textures(
         raise ValueError(f"optimise_textures needs a differentiable Mitsuba variant (e.g. llvm_ad_rgb), "
                          f"not {mi.variant()}")
     images, weights = _check_captures(cameras, images, weights)
-    data = _Views(sensor_views(mi, cameras), images, weights)
+    data = _Views.of(mi, cameras, images, weights, settings.crop)
     resolution = check_textures(start)["roughness"].shape[0]
     scene = inverse_scene(mi, mesh, envmap, coarse_textures(start, settings.coarse_levels), width=cameras.width,
                           height=cameras.height, spp=settings.spp, max_depth=settings.max_depth)

@@ -108,6 +108,11 @@ class InverseSettings:
         (``stop_window``) only once at full resolution.
     coarse_epochs : int
         Epochs at each coarse level, >= 1; ``epochs`` must exceed ``coarse_levels * coarse_epochs``.
+    crop : bool
+        Render only a window of each view that holds every pixel of loss weight > 0, one window
+        size for all views (:func:`freqbrdf.estimate.mitsuba.crop_windows`): the pixels outside
+        it add nothing to the loss or its gradient, so the estimate is the same in expectation
+        and a step costs less, the more so the smaller the object in the image.
     """
 
     epochs: int = 10
@@ -124,6 +129,7 @@ class InverseSettings:
     stop_fall: float = 0.01
     coarse_levels: int = 0
     coarse_epochs: int = 1
+    crop: bool = False
 
     def __post_init__(self) -> None:
         check_int(self.epochs, "epochs", 1)
@@ -143,6 +149,8 @@ class InverseSettings:
             raise ValueError(f"stop_fall must be in [0, 1), got {self.stop_fall!r}")
         check_int(self.coarse_levels, "coarse_levels", 0)
         check_int(self.coarse_epochs, "coarse_epochs", 1)
+        if not isinstance(self.crop, bool):
+            raise ValueError(f"crop must be true or false, got {self.crop!r}")
         if self.epochs <= self.full_resolution_from:
             raise ValueError(f"epochs ({self.epochs}) must exceed coarse_levels x coarse_epochs "
                              f"({self.coarse_levels} x {self.coarse_epochs}), so the run ends at full resolution")
