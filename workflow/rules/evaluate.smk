@@ -37,7 +37,7 @@ rule metrics:
         layout.benchmark("metrics")
     conda:
         "../envs/freqbrdf.yaml"
-    threads: 1
+    threads: 2  # the relit image sets are scored on a thread each
     resources:
         mem_mb=memory(500, "texels"),
         runtime=minutes(2, "texels"),

@@ -4,6 +4,7 @@ Every path comes from ``snakemake.input``; ``snakemake.params`` says what each
 input list holds, in the same order (see rules/evaluate.smk).
 """
 
+from concurrent.futures import ThreadPoolExecutor
 from functools import cache
 from itertools import accumulate
 from pathlib import Path
@@ -56,12 +57,22 @@ def parameter_rows(smk):
         rows.append(dict(object=obj, env=env, poses=poses, method="", relight_env="", metric="mean_entropy",
                          value=float(entropy.mean())))
     baselines = cache(lambda key: baseline_maps(observations(key)))
+    estimates = keyed(p.synthetic, smk.input.estimates)
+    for obj, env, poses in p.captures:  # filled here: a cache is not shared safely between threads
+        truth(obj), scored((obj, env, poses))
+
+    def brdf_error(item):
+        (obj, env, poses, _), directory = item
+        return brdf_log_error(truth(obj), read_svbrdf(directory), scored((obj, env, poses)))
+
+    # most of the rule's time; NumPy releases the GIL in the large array operations
+    with ThreadPoolExecutor(smk.threads) as pool:
+        brdf_errors = list(pool.map(brdf_error, estimates.items()))
     curves, calibration = [], []
-    for (obj, env, poses, method), directory in keyed(p.synthetic, smk.input.estimates).items():
+    for ((obj, env, poses, method), directory), brdf_error in zip(estimates.items(), brdf_errors):
         estimate, texels = read_svbrdf(directory), scored((obj, env, poses))
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")
         rows += [key | dict(metric=f"mse_{k}", value=v) for k, v in parameter_mse(truth(obj), estimate, texels).items()]
-        brdf_error = brdf_log_error(truth(obj), estimate, texels)
         rows.append(key | dict(metric="brdf_log_rmse", value=float(np.sqrt(brdf_error.mean()))))
         scaled = base_color_si_scores(truth(obj).base_color, estimate.base_color, texels)
         rows += [key | dict(metric=f"base_color_si_{k}", value=v) for k, v in scaled.items()]
@@ -116,13 +127,21 @@ def relight_rows(smk, log):
     """psnr_h, psnr_l, ssim, mse of every relit image set: each test view's (``view`` set), and their
     mean over the views (``view`` empty)."""
     settings = smk.params.metrics
-    tests = keyed(smk.params.references, smk.input.references)
-    reference = cache(lambda key: reference_views(tests[key], settings["mask_min_coverage"]))
-    rows = []
-    for (obj, env, poses, method, relight_env), relit in keyed(smk.params.relights, smk.input.relit).items():
-        names, refs, masks = reference((obj, relight_env))
+    references = {key: reference_views(test, settings["mask_min_coverage"])
+                  for key, test in keyed(smk.params.references, smk.input.references).items()}
+    sets = keyed(smk.params.relights, smk.input.relit)
+
+    def score(item):
+        (obj, *_, relight_env), relit = item
+        names, refs, masks = references[(obj, relight_env)]
         preds = [read_exr(f"{relit}/{relight_env}/images/{name}.exr") for name in names]
-        per_view = relight_view_scores(preds, refs, masks, HdrScoring.from_config(settings))
+        return names, relight_view_scores(preds, refs, masks, HdrScoring.from_config(settings))
+
+    # SciPy's filters under the SSIM release the GIL
+    with ThreadPoolExecutor(smk.threads) as pool:
+        scored = list(pool.map(score, sets.items()))
+    rows = []
+    for (obj, env, poses, method, relight_env), (names, per_view) in zip(sets, scored):
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env=relight_env)
         rows += [key | dict(view="", metric=k, value=float(np.mean([v[k] for v in per_view])))
                  for k in RELIGHT_METRICS]
