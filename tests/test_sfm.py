@@ -69,6 +69,27 @@ def test_pose_errors_measure_centre_offsets_relative_to_the_camera_distance():
     assert errors["rotation_error_deg"][5] == pytest.approx(0.0, abs=1e-5)
 
 
+def test_relative_rotation_errors_ignore_the_world_frame_and_find_the_turned_view():
+    ref = make_rig()
+    turn = Rotation.from_rotvec([0.0, np.radians(2.0), 0.0]).as_matrix()
+    # the whole rig turned and shifted, as an unaligned reconstruction would be: no relative error
+    moved = sfm_alignment.transform_world_to_camera(ref.world_to_camera, similarity(0.7, [0.2, 0.9, -0.4], [1.0, 2.0, 3.0]))
+    errors = sfm_alignment.pose_errors(dataclasses.replace(ref, world_to_camera=moved), ref)
+    assert errors["relative_rotation_error_deg"].max() < 1e-5 and errors["rotation_error_deg"].min() > 10.0
+    # one camera turned by 2 degrees about its own centre: 2 degrees against every other view
+    w2c = ref.world_to_camera.copy()
+    w2c[3, :3, :] = turn @ w2c[3, :3, :]
+    angles = sfm_alignment.relative_rotation_errors(w2c[:, :3, :3], ref.world_to_camera[:, :3, :3])
+    assert angles.shape == (12, 11)
+    np.testing.assert_allclose(angles[3], 2.0, atol=1e-6)
+    others = np.delete(angles, 3, axis=0)  # each other view: 2 degrees against view 3, 0 against the rest
+    np.testing.assert_allclose(np.sort(others, axis=1)[:, -1], 2.0, atol=1e-6)
+    assert np.sort(others, axis=1)[:, -2].max() < 1e-5
+    errors = sfm_alignment.pose_errors(dataclasses.replace(ref, world_to_camera=w2c), ref)
+    assert errors["relative_rotation_error_deg"][3] == pytest.approx(2.0, abs=1e-6)
+    assert errors["relative_rotation_error_deg"].drop(3).max() < 1e-5
+
+
 def test_pose_errors_accept_a_subset_and_reject_unknown_views():
     ref = make_rig()
     subset = Cameras(ref.K[[2, 7]], ref.world_to_camera[[2, 7]], ref.width, ref.height, ("002", "007"))
@@ -102,6 +123,7 @@ def test_summarise_medians_and_fraction():
             "name": ["a", "b", "c"],
             "rotation_error_deg": [0.1, 0.5, 3.0],
             "centre_error_rel": [0.002, 0.001, 0.05],
+            "relative_rotation_error_deg": [0.3, 0.2, 0.9],
             "reprojection_error_px": [0.4, 0.6, np.nan],
         }
     )
@@ -109,6 +131,7 @@ def test_summarise_medians_and_fraction():
     assert s["registered"] == 3 and s["registered_fraction"] == 0.75
     assert s["median_rotation_error_deg"] == pytest.approx(0.5)
     assert s["median_centre_error_rel"] == pytest.approx(0.002)
+    assert s["median_relative_rotation_error_deg"] == pytest.approx(0.3)
     assert s["mean_reprojection_error_px"] == pytest.approx(0.5)
     assert np.isnan(sfm_alignment.summarise(errors.drop(columns="reprojection_error_px"), 3)["mean_reprojection_error_px"])
     with pytest.raises(ValueError, match="3 registered views but only 2"):

@@ -217,8 +217,11 @@ def pose_errors(
     -------
     pandas.DataFrame
         One row per estimated view: ``name``, ``rotation_error_deg`` (angle of
-        ``R_est R_ref^T``), ``centre_error_rel`` (``|c_est - c_ref| / |c_ref|``)
-        and, if given, ``reprojection_error_px``.
+        ``R_est R_ref^T``), ``centre_error_rel`` (``|c_est - c_ref| / |c_ref|``),
+        ``relative_rotation_error_deg`` (the median over the other estimated views of
+        :func:`relative_rotation_errors`: no alignment enters it, so where it is as large as
+        ``rotation_error_deg`` the SfM's own poses are off, not their alignment) and, if
+        given, ``reprojection_error_px``.
     """
     import pandas as pd
 
@@ -239,11 +242,34 @@ def pose_errors(
             "name": list(estimated.names),
             "rotation_error_deg": rotation_angle_deg(R_est @ np.swapaxes(R_ref, 1, 2)),
             "centre_error_rel": np.linalg.norm(c_est - c_ref, axis=1) / ref_distance,
+            "relative_rotation_error_deg": np.median(relative_rotation_errors(R_est, R_ref), axis=1)
+            if len(rows) > 1 else np.full(len(rows), np.nan),
         }
     )
     if reprojection is not None:
         table["reprojection_error_px"] = [float(reprojection.get(n, np.nan)) for n in estimated.names]
     return table
+
+
+def relative_rotation_errors(R_est: np.ndarray, R_ref: np.ndarray) -> np.ndarray:
+    """Angles between every pair's relative rotation in the estimate and in the reference.
+
+    Parameters
+    ----------
+    R_est, R_ref : ndarray, shape (N, 3, 3)
+        World-to-camera rotations of the same N views.
+
+    Returns
+    -------
+    ndarray, shape (N, N - 1)
+        Row i: the angles (degrees) of ``(R_est_i R_est_j^T)(R_ref_i R_ref_j^T)^T`` over j != i,
+        unchanged by any rotation of either world frame.
+    """
+    rel_est = R_est[:, None] @ np.swapaxes(R_est, 1, 2)[None]
+    rel_ref = R_ref[:, None] @ np.swapaxes(R_ref, 1, 2)[None]
+    angles = rotation_angle_deg(rel_est @ np.swapaxes(rel_ref, 2, 3))
+    n = len(angles)
+    return angles[~np.eye(n, dtype=bool)].reshape(n, n - 1)
 
 
 def summarise(errors: pandas.DataFrame, n_views: int) -> dict[str, float | int]:
@@ -253,8 +279,9 @@ def summarise(errors: pandas.DataFrame, n_views: int) -> dict[str, float | int]:
     -------
     dict
         ``n_views``, ``registered``, ``registered_fraction``,
-        ``median_rotation_error_deg``, ``median_centre_error_rel`` and
-        ``mean_reprojection_error_px`` (NaN where there is nothing to average).
+        ``median_rotation_error_deg``, ``median_centre_error_rel``,
+        ``median_relative_rotation_error_deg`` and ``mean_reprojection_error_px`` (NaN where
+        there is nothing to average).
     """
     registered = len(errors)
     if n_views < 1:
@@ -273,6 +300,7 @@ def summarise(errors: pandas.DataFrame, n_views: int) -> dict[str, float | int]:
         "registered_fraction": registered / n_views,
         "median_rotation_error_deg": stat("rotation_error_deg", np.median),
         "median_centre_error_rel": stat("centre_error_rel", np.median),
+        "median_relative_rotation_error_deg": stat("relative_rotation_error_deg", np.median),
         "mean_reprojection_error_px": stat("reprojection_error_px", np.nanmean),
     }
 
