@@ -147,16 +147,21 @@ def test_view_order_visits_every_view_once_per_epoch():
     np.testing.assert_array_equal(orders[2], inv.view_order(3, 2, 10))
 
 
-def test_sensor_reproduces_an_off_centre_principal_point(mi, capture):
-    # Seen from a camera looking at its centre, the sphere's silhouette is a disc
-    # centred on the principal point (cx, cy), wherever K puts it.
-    size, cx, cy = 48, 27.0, 20.5
-    cameras = ring_cameras(size, cx, cy)
-    scene = mask_scene(mi, capture["mesh"], width=size, height=size, fov_x_deg=FOV, spp=16)
+def coverage_scene(mi, mesh, cameras, spp):
+    """The object's coverage scene seen from the first of ``cameras``, and its parameters."""
+    scene = mask_scene(mi, mesh, width=cameras.width, height=cameras.height, fov_x_deg=FOV, spp=spp)
     params = mi.traverse(scene)
     for key, value in inv.sensor_views(mi, cameras)[0].items():
         params[key] = value
     params.update()
+    return scene, params
+
+
+def test_sensor_reproduces_an_off_centre_principal_point(mi, capture):
+    # Seen from a camera looking at its centre, the sphere's silhouette is a disc
+    # centred on the principal point (cx, cy), wherever K puts it.
+    size, cx, cy = 48, 27.0, 20.5
+    scene, params = coverage_scene(mi, capture["mesh"], ring_cameras(size, cx, cy), spp=16)
     coverage = np.array(mi.render(scene, params, spp=16))[..., 0]
     rows, cols = np.indices(coverage.shape)
     assert (coverage * (cols + 0.5)).sum() / coverage.sum() == pytest.approx(cx, abs=0.15)
@@ -189,12 +194,7 @@ def test_a_cropped_render_is_the_whole_render_inside_its_window(mi, capture):
     # whole and in its window: the same pixels up to the silhouette's sampling noise, and far
     # from them one pixel off.
     size = 48
-    cameras = ring_cameras(size, 28.0, 26.0)
-    scene = mask_scene(mi, capture["mesh"], width=size, height=size, fov_x_deg=FOV, spp=256)
-    params = mi.traverse(scene)
-    for key, value in inv.sensor_views(mi, cameras)[0].items():
-        params[key] = value
-    params.update()
+    scene, params = coverage_scene(mi, capture["mesh"], ring_cameras(size, 28.0, 26.0), spp=256)
     whole = np.array(mi.render(scene, params, seed=1))[..., 0]
     windows = inv.crop_windows(whole[None])
     (x, y), (w, h) = windows.offsets[0], windows.size
