@@ -12,7 +12,7 @@ Recomputes both at the estimate of a finished run (`freq` by default), each capt
 the posterior's finite differences, and prints per capture the AUSE of each map's expected squared
 error against the true squared parameter error (lower ranks better), their Spearman correlation
 with it, their partial Pearson correlation given the view count, and the mean of each map over
-the mean true error. ``--blend``: also the larger of the two per texel.
+the mean true error; beside them the view count's and a random order's AUSE. ``--blend``: also the larger of the two per texel.
 
     python bench/sandwich_variance.py --results DIR --captures sphere/sky bunny/lobby [--method freq]
 """
@@ -33,7 +33,7 @@ from freqbrdf.estimate.optimise.posterior import PRIOR_PRECISION, expected_error
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params
 from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings
 from freqbrdf.report.metrics import parameter_error_map
-from freqbrdf.report.sparsification import ause, baseline_maps, partial_pearson
+from freqbrdf.report.sparsification import ause, baseline_maps, partial_pearson, random_ause
 from freqbrdf.sphere.brdf import TEXTURES
 from freqbrdf.util.io import read_exr
 
@@ -108,6 +108,7 @@ def main() -> None:
             print(f"{capture:14s} {name:9s} AUSE {ause(values, error):.3f}  Spearman {spearman(values, error):+.3f}  "
                   f"partial r | views {partial_pearson(values, error, views) if name != 'views' else float('nan'):+.3f}  "
                   f"mean / mean error {np.mean(values) / np.mean(error):.3f}", flush=True)
+        print(f"{capture:14s} {'random':9s} AUSE {random_ause(error):.3f} (expected)", flush=True)
 
 
 if __name__ == "__main__":
