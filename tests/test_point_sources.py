@@ -234,3 +234,20 @@ def test_point_sources_recover_the_metals_that_the_sun_through_the_sh_does_not()
         errors[name] = {g: np.abs(est[g] - truth[g])[metal].mean() for g in ("roughness", "metallic")}
     assert errors["point"]["metallic"] < 0.5 * errors["sh"]["metallic"]
     assert errors["point"]["roughness"] < 0.75 * errors["sh"]["roughness"]
+
+
+@pytest.mark.parametrize("density", [0.05, 0.3, 0.6])
+def test_components_and_dilation_match_scipy_ndimage(density):
+    from scipy import ndimage
+
+    rng = np.random.default_rng(int(density * 100))
+    mask = rng.uniform(size=(37, 61)) < density
+    mask[0, :3] = mask[-1, -3:] = True  # components touching the edges, which do not wrap
+    labels, count = lt.label_components(mask)
+    expected, expected_count = ndimage.label(mask, structure=np.ones((3, 3)))
+    assert count == expected_count > 1
+    np.testing.assert_array_equal(labels, expected)
+    for steps in (0, 1, 2):
+        np.testing.assert_array_equal(lt.dilate(mask, steps), ndimage.binary_dilation(mask, iterations=steps)
+                                      if steps else mask)
+
