@@ -255,6 +255,7 @@ def test_image_loss_and_total_variation_match_their_formulas(mi):
         ({"lr": "fast"}, r"lr must be a finite number > 0 or a mapping of .*, got str 'fast'"),
         ({"stop_window": -1}, r"stop_window must be >= 0, got -1"),
         ({"stop_fall": 1.0}, r"stop_fall must be in \[0, 1\), got 1.0"),
+        ({"crop": "yes"}, r"crop must be true or false, got 'yes'"),
     ],
 )
 def test_bad_settings_give_one_line_naming_the_field(settings, message):
