@@ -59,15 +59,16 @@ def parameter_rows(smk):
     baselines = cache(lambda key: baseline_maps(observations(key)))
     estimates = keyed(p.synthetic, smk.input.estimates)
     for obj, env, poses in p.captures:  # filled here: a cache is not shared safely between threads
-        truth(obj), scored((obj, env, poses))
+        truth(obj)
+        scored((obj, env, poses))
 
-    def brdf_error(item):
+    def score_brdf(item):
         (obj, env, poses, _), directory = item
         return brdf_log_error(truth(obj), read_svbrdf(directory), scored((obj, env, poses)))
 
     # most of the rule's time; NumPy releases the GIL in the large array operations
     with ThreadPoolExecutor(smk.threads) as pool:
-        brdf_errors = list(pool.map(brdf_error, estimates.items()))
+        brdf_errors = list(pool.map(score_brdf, estimates.items()))
     curves, calibration = [], []
     for ((obj, env, poses, method), directory), brdf_error in zip(estimates.items(), brdf_errors):
         estimate, texels = read_svbrdf(directory), scored((obj, env, poses))
@@ -131,7 +132,7 @@ def relight_rows(smk, log):
                   for key, test in keyed(smk.params.references, smk.input.references).items()}
     sets = keyed(smk.params.relights, smk.input.relit)
 
-    def score(item):
+    def score_relit(item):
         (obj, *_, relight_env), relit = item
         names, refs, masks = references[(obj, relight_env)]
         preds = [read_exr(f"{relit}/{relight_env}/images/{name}.exr") for name in names]
@@ -139,9 +140,9 @@ def relight_rows(smk, log):
 
     # SciPy's filters under the SSIM release the GIL
     with ThreadPoolExecutor(smk.threads) as pool:
-        scored = list(pool.map(score, sets.items()))
+        per_set = list(pool.map(score_relit, sets.items()))
     rows = []
-    for (obj, env, poses, method, relight_env), (names, per_view) in zip(sets, scored):
+    for (obj, env, poses, method, relight_env), (names, per_view) in zip(sets, per_set):
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env=relight_env)
         rows += [key | dict(view="", metric=k, value=float(np.mean([v[k] for v in per_view])))
                  for k in RELIGHT_METRICS]
