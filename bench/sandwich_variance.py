@@ -29,7 +29,8 @@ from freqbrdf import layout
 from freqbrdf.artefacts import read_observations, read_svbrdf
 from freqbrdf.estimate.light_table import read_light_table
 from freqbrdf.estimate.optimise.model import ForwardModel, estimate_light
-from freqbrdf.estimate.optimise.posterior import PRIOR_PRECISION, expected_error, model_jacobian, residual_variance
+from freqbrdf.estimate.optimise.posterior import (PRIOR_PRECISION, expected_error, model_jacobian, pair_information,
+                                                  residual_variance)
 from freqbrdf.estimate.optimise.problem import build_problem, pack_params
 from freqbrdf.estimate.optimise.settings import N_PARAMS, OptimiseSettings
 from freqbrdf.report.metrics import parameter_error_map
@@ -45,7 +46,7 @@ def posteriors(jacobian: np.ndarray, residual: np.ndarray, start: np.ndarray) ->
     slot = np.repeat(np.arange(n), np.diff(start))
     s2 = residual_variance(residual, slot, n)
     curvature = np.zeros((n, N_PARAMS, N_PARAMS))
-    np.add.at(curvature, slot, np.einsum("ncq,ncr->nqr", jacobian, jacobian))
+    np.add.at(curvature, slot, pair_information(jacobian))
     precision = curvature / s2[:, None, None] + PRIOR_PRECISION * np.eye(N_PARAMS)
     inverse = np.linalg.inv(precision)
     score = np.einsum("ncq,nc->nq", jacobian, residual) / s2[slot, None]

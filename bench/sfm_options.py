@@ -76,8 +76,7 @@ def main() -> None:
         options = SfmOptions.from_config(base | parse_setting(setting))
         for capture in args.captures:
             obj, env = capture.split("/")
-            directory = args.results / Path(layout.fill(layout.CAPTURE, object=obj, env=env, split="train")).relative_to(
-                layout.RESULTS)
+            directory = layout.located(layout.CAPTURE, args.results, object=obj, env=env, split="train")
             try:
                 row = score(directory, options)
             except Exception as error:  # a setting that registers nothing is a result, not a crash

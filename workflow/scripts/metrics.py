@@ -58,20 +58,21 @@ def parameter_rows(smk):
                          value=float(entropy.mean())))
     baselines = cache(lambda key: baseline_maps(observations(key)))
     estimates = keyed(p.synthetic, smk.input.estimates)
-    for obj, env, poses in p.captures:  # filled here: a cache is not shared safely between threads
+    for obj in {o for o, _, _ in p.captures}:  # read here, once, rather than by each thread that needs it
         truth(obj)
-        scored((obj, env, poses))
 
     def score_brdf(item):
+        """The estimate and its BRDF error per scored texel."""
         (obj, env, poses, _), directory = item
-        return brdf_log_error(truth(obj), read_svbrdf(directory), scored((obj, env, poses)))
+        estimate = read_svbrdf(directory)
+        return estimate, brdf_log_error(truth(obj), estimate, scored((obj, env, poses)))
 
     # most of the rule's time; NumPy releases the GIL in the large array operations
     with ThreadPoolExecutor(smk.threads) as pool:
-        brdf_errors = list(pool.map(score_brdf, estimates.items()))
+        scored_estimates = list(pool.map(score_brdf, estimates.items()))
     curves, calibration = [], []
-    for ((obj, env, poses, method), directory), brdf_error in zip(estimates.items(), brdf_errors):
-        estimate, texels = read_svbrdf(directory), scored((obj, env, poses))
+    for ((obj, env, poses, method), directory), (estimate, brdf_error) in zip(estimates.items(), scored_estimates):
+        texels = scored((obj, env, poses))
         key = dict(object=obj, env=env, poses=poses, method=method, relight_env="")
         rows += [key | dict(metric=f"mse_{k}", value=v) for k, v in parameter_mse(truth(obj), estimate, texels).items()]
         rows.append(key | dict(metric="brdf_log_rmse", value=float(np.sqrt(brdf_error.mean()))))
@@ -131,12 +132,13 @@ def relight_rows(smk, log):
     references = {key: reference_views(test, settings["mask_min_coverage"])
                   for key, test in keyed(smk.params.references, smk.input.references).items()}
     sets = keyed(smk.params.relights, smk.input.relit)
+    scoring = HdrScoring.from_config(settings)
 
     def score_relit(item):
         (obj, *_, relight_env), relit = item
         names, refs, masks = references[(obj, relight_env)]
         preds = [read_exr(f"{relit}/{relight_env}/images/{name}.exr") for name in names]
-        return names, relight_view_scores(preds, refs, masks, HdrScoring.from_config(settings))
+        return names, relight_view_scores(preds, refs, masks, scoring)
 
     # SciPy's filters under the SSIM release the GIL
     with ThreadPoolExecutor(smk.threads) as pool:
