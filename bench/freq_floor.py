@@ -11,6 +11,8 @@ directory that has the capture's observations, its map and the map's light table
 - ``problem``: `build_problem` and `ForwardModel.of`;
 - ``light terms``: one full evaluation of the shadowed light at every pair (from the table);
 - ``grid start``: the (roughness x metallic) grid search;
+- ``lane terms``: the light terms laid out for the objective's kernel (`freqbrdf.estimate.optimise.lanes`),
+  after the first evaluation and each refit;
 - ``objective``: one loss-and-gradient evaluation (the Adam loop makes ``iterations + 1`` of them);
 - ``adam update``: one update of every parameter;
 - ``posterior``: the Laplace variances (`texel_information`, `posterior_variance`).
@@ -143,7 +145,12 @@ def phases(capture: str, results: Path, threads: int) -> list[dict]:
                  "bytes": terms_bytes + pair_bytes,
                  "fma": grid_r.size * n * (3 * deg + 10 * sources + grid_m.size * 3 * 4)})
     xp = np.ascontiguousarray(start_x[p.perm])
-    rows.append({"phase": "objective", "seconds": _best(lambda: model.objective(xp, terms, settings.tv_weight), 10),
+    lane_terms = model.lane_terms(terms)  # as the Adam loop reads them (None where the lanes do not apply)
+    if lane_terms is not None:
+        rows.append({"phase": "lane terms", "seconds": _best(lambda: model.lane_terms(terms, lane_terms), 3),
+                     "bytes": 2 * terms_bytes, "fma": 0})  # read, and written in the lanes' order
+    rows.append({"phase": "objective", "seconds": _best(lambda: model.objective(xp, terms, settings.tv_weight,
+                                                                                 lane_terms), 10),
                  # the light's sums and their slopes (6 per degree), each source's term and slope (~20)
                  "bytes": terms_bytes + pair_bytes + texel_bytes, "fma": n * (6 * deg + 20 * sources)})
     grad = model.objective(xp, terms, settings.tv_weight)[1]

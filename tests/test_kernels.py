@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from freqbrdf.estimate.optimise import compiled, compiled_light, compiled_steps, kernels
+from freqbrdf.estimate.optimise import compiled, compiled_lanes, compiled_light, compiled_steps, kernels
 from freqbrdf.sphere.sh import real_sh, recurrence_tables, sh_degrees
 
 
@@ -39,8 +39,24 @@ def test_small_cholesky_solve_matches_numpy() -> None:
 
 def test_the_light_kernels_compile_with_the_model_kernels_settings() -> None:
     # each file keeps its own copy: numba's cache would not see a change to the other file's
-    assert compiled_light._FAST == compiled._FAST
+    assert compiled_light._FAST == compiled._FAST == compiled_lanes._FAST
     assert compiled_light._TEXELS == compiled_steps._TEXELS  # the model's blocks (`compiled_steps.block_bounds`)
+
+
+def test_the_lanes_hermite_is_the_model_kernels_own() -> None:
+    """`compiled_lanes._hermite` is a copy (numba's cache follows the defining file only): the same
+    code, docstring aside, and the same flags."""
+    import ast
+    import inspect
+
+    def body(function) -> str:
+        tree = ast.parse(inspect.getsource(function.py_func))
+        tree.body[0].body = tree.body[0].body[1:]  # the docstring
+        tree.body[0].decorator_list = []
+        return ast.dump(tree)
+
+    assert body(compiled_lanes._hermite) == body(compiled._hermite)
+    assert compiled_lanes._hermite.targetoptions == compiled._hermite.targetoptions
 
 
 def test_the_model_kernels_see_one_type_of_view_table_whether_empty_or_tabled() -> None:
@@ -70,7 +86,7 @@ def test_every_compiled_helper_fixes_its_own_fast_math_flags() -> None:
     from freqbrdf.studies import expected_entropy
 
     helpers = {f"{module.__name__}.{name}": value.targetoptions
-               for module in (compiled, compiled_light, compiled_steps, capture_kernels, expected_entropy)
+               for module in (compiled, compiled_lanes, compiled_light, compiled_steps, capture_kernels, expected_entropy)
                for name, value in vars(module).items()
                if hasattr(value, "targetoptions") and name not in module.__all__  # kernels: called from Python
                and not value.targetoptions.get("parallel") and value.targetoptions.get("inline", "never") == "never"}

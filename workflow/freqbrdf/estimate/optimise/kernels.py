@@ -28,8 +28,8 @@ from freqbrdf.estimate.optimise import compiled, compiled_light, compiled_steps
 from freqbrdf.sphere.brdf import ALPHA_MIN, R0_DIELECTRIC
 from freqbrdf.util.compile_once import first_call_locked
 
-__all__ = ["PairData", "KernelModel", "LmStep", "degree_sums", "shadowing_factors", "basis_factors", "table_sums", "l1_loss_gradient",
-           "grid_search", "lm_sweep", "tv_loss_gradient", "adam_update", "texel_information",
+__all__ = ["PairData", "KernelModel", "LmStep", "lobe_argument", "view_argument", "point_arguments", "degree_sums",
+           "shadowing_factors", "basis_factors", "table_sums", "l1_loss_gradient", "grid_search", "lm_sweep", "tv_loss_gradient", "adam_update", "texel_information",
            "source_geometry"]
 
 
@@ -221,18 +221,19 @@ def table_sums(
     first_call_locked(compiled_light.table_sums_kernel, coefficients, corner, corner_weight, v, slots, start, mirror, a, b, out)
 
 
-def _table(lobe: np.ndarray | None, terms: np.ndarray) -> np.ndarray:
-    """``lobe`` (`freqbrdf.sphere.lobes.lobe_table`) checked against the light terms' degrees; None: the Gaussian."""
+def lobe_argument(lobe: np.ndarray | None, n_degrees: int) -> np.ndarray:
+    """``lobe`` (`freqbrdf.sphere.lobes.lobe_table`) as the kernels take it, checked against the light terms'
+    ``n_degrees``; None: the Gaussian (an empty table)."""
     if lobe is None:
-        return np.empty((0, 2, terms.shape[1]))
+        return np.empty((0, 2, n_degrees))
     lobe = np.ascontiguousarray(lobe, np.float64)
-    if lobe.ndim != 3 or lobe.shape[1] != 2 or lobe.shape[2] < terms.shape[1] or lobe.shape[0] == 1:
-        raise ValueError(f"lobe must be a lobe_table of degree >= {terms.shape[1] - 1}, got shape {lobe.shape}")
+    if lobe.ndim != 3 or lobe.shape[1] != 2 or lobe.shape[2] < n_degrees or lobe.shape[0] == 1:
+        raise ValueError(f"lobe must be a lobe_table of degree >= {n_degrees - 1}, got shape {lobe.shape}")
     return lobe
 
 
-def _view(view: np.ndarray | None) -> np.ndarray:
-    """``view`` (`freqbrdf.sphere.lobes.view_table`) checked, read-only; None: the paper's
+def view_argument(view: np.ndarray | None) -> np.ndarray:
+    """``view`` (`freqbrdf.sphere.lobes.view_table`) as the kernels take it: checked, read-only; None: the paper's
     ``F(theta_o) G1(theta_o)``.
 
     Read-only whatever it was: numba compiles a kernel once per type, and a read-only array is
@@ -247,8 +248,8 @@ def _view(view: np.ndarray | None) -> np.ndarray:
     return view
 
 
-def _point(point: tuple[np.ndarray, np.ndarray] | None, start: np.ndarray, dtype: np.dtype
-           ) -> tuple[np.ndarray, np.ndarray]:
+def point_arguments(point: tuple[np.ndarray, np.ndarray] | None, start: np.ndarray, dtype: np.dtype
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """``point`` (``geometry`` (N, P, 3), ``src`` (S, P, 4)) checked against the pairs and texels of
     ``start``; None: no point sources (an empty geometry of ``dtype``, the pairs', so that the
     kernels compile once per dtype)."""
@@ -269,8 +270,9 @@ def _arguments(terms: np.ndarray, pairs: PairData, model: KernelModel, texels: n
     if texels is None:
         texels = np.arange(pairs.start.shape[0] - 1)
     return (pairs.start, terms, pairs.radiance, pairs.schlick, pairs.tan2, pairs.irradiance_pi, model.masking,
-            model.alpha_min, model.r0_dielectric, _table(model.lobe, terms), _view(model.view),
-            *_point(model.point, pairs.start, pairs.radiance.dtype), compiled_steps.block_bounds(pairs.start, texels))
+            model.alpha_min, model.r0_dielectric, lobe_argument(model.lobe, terms.shape[1]), view_argument(model.view),
+            *point_arguments(model.point, pairs.start, pairs.radiance.dtype),
+            compiled_steps.block_bounds(pairs.start, texels))
 
 
 def l1_loss_gradient(

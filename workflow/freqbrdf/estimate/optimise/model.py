@@ -12,6 +12,7 @@ import numpy as np
 from freqbrdf.artefacts import Observations
 from freqbrdf.estimate.light import LightQuadrature, PointSources, extract_point_sources, irradiance, light_quadrature, shadowed_light
 from freqbrdf.estimate.light_table import ShadowedLightTable, shadowed_light_table
+from freqbrdf.estimate.optimise import lanes
 from freqbrdf.estimate.optimise.kernels import (KernelModel, degree_sums, grid_search, l1_loss_gradient,
                                                 source_geometry, table_sums)
 from freqbrdf.estimate.optimise.problem import Problem, check_params
@@ -229,9 +230,16 @@ def _data_term(xp: np.ndarray, problem: Problem, terms: np.ndarray, model: Kerne
 
 def _objective(
     xp: np.ndarray, problem: Problem, terms: np.ndarray, model: KernelModel, tv_weight: float,
+    lane: tuple[lanes.PairLanes, np.ndarray] | None = None,
 ) -> tuple[float, np.ndarray]:
-    """`loss_and_gradient` of internal-order ``xp`` (texel-order sums, so independent of threads)."""
-    loss_per_texel, grad_obs = _data_term(xp, problem, terms, model)
+    """`loss_and_gradient` of internal-order ``xp`` (texel-order sums, so independent of threads); the
+    data term from ``lane`` (the pairs and the same ``terms`` laid out in lanes) where given."""
+    if lane is None:
+        loss_per_texel, grad_obs = _data_term(xp, problem, terms, model)
+    else:
+        if lane[0].model is not model or lane[0].pairs.start is not problem.start:
+            raise ValueError("lane: the lanes of another model or problem")
+        loss_per_texel, grad_obs = lanes.l1_loss_gradient_lanes(xp[: problem.n_observed], lane[1], lane[0])
     scale = 1.0 / (3.0 * problem.n_pairs)  # mean over pairs and channels
     grad = np.zeros_like(xp)
     grad[: problem.n_observed] = grad_obs * scale
@@ -327,7 +335,7 @@ def loss_and_gradient(
 
 def grid_start(
     problem: Problem, terms: np.ndarray, model: KernelModel, roughness: np.ndarray, metallic: np.ndarray,
-    workers: int = 1,
+    workers: int = 1, lane_pairs: lanes.PairLanes | None = None,
 ) -> np.ndarray:
     """Per-texel start of the optimiser: the best of a (roughness x metallic) grid.
 
@@ -352,6 +360,10 @@ def grid_start(
         1-D grids of candidate values in [0, 1].
     workers : int
         Threads.
+    lane_pairs : PairLanes, optional
+        The pairs laid out in lanes (`freqbrdf.estimate.optimise.lanes.pair_lanes` of ``model``): the
+        search runs on them, its light sums in the terms' precision (the same grid point, but where
+        two tie within that rounding: a texel of one pair fits its 3 channels exactly at many).
 
     Returns
     -------
@@ -361,7 +373,13 @@ def grid_start(
     p = _check_terms(terms, problem)
     set_threads(check_int(workers, "workers", 1))
     xp = np.full((problem.n_texels, N_PARAMS), 0.5)
-    xp[: problem.n_observed] = grid_search(p, problem.pair_data, model, roughness, metallic)
+    if lane_pairs is None:
+        xp[: problem.n_observed] = grid_search(p, problem.pair_data, model, roughness, metallic)
+    elif lane_pairs.model is not model:
+        raise ValueError("lane_pairs: laid out for another model")
+    else:
+        xp[: problem.n_observed] = lanes.grid_search_lanes(lanes.lane_terms(p, lane_pairs), lane_pairs, roughness,
+                                                           metallic)
     x = np.empty_like(xp)
     x[problem.perm] = xp
     return x
@@ -384,6 +402,9 @@ class ForwardModel:
         Masking, the lobe and view tables and the point sources, as the kernels read them.
     table : ShadowedLightTable, optional
         The shadowed light tabulated (``settings.light_table``); None: fitted per texel.
+    lane_pairs : PairLanes, optional
+        The pairs laid out for the objective's vectorised kernel (`freqbrdf.estimate.optimise.lanes`);
+        None where it does not evaluate this model (the albedo weights).
     """
 
     problem: Problem
@@ -391,6 +412,7 @@ class ForwardModel:
     shadowing: bool
     kernel: KernelModel
     table: ShadowedLightTable | None = None
+    lane_pairs: lanes.PairLanes | None = None
 
     @classmethod
     def of(cls, problem: Problem, light: LightQuadrature, method: str, settings: OptimiseSettings,
@@ -408,7 +430,9 @@ class ForwardModel:
             table = shadowed_light_table(light, size.rows, size.rank, settings.workers)
         else:
             table.check_fits(light, size)
-        return cls(problem, light, shadowing, KernelModel(masking, lobe, view, point), table)
+        kernel = KernelModel(masking, lobe, view, point)
+        layout = lanes.pair_lanes(problem.pair_data, kernel) if lanes.supports(kernel) else None
+        return cls(problem, light, shadowing, kernel, table, layout)
 
     def light_terms(self, roughness: np.ndarray, workers: int) -> np.ndarray:
         """`light_terms` of every observation at ``roughness`` (T,)."""
@@ -424,10 +448,18 @@ class ForwardModel:
         _data_term(xp, self.problem, terms, self.kernel, out)
         return out
 
-    def objective(self, xp: np.ndarray, terms: np.ndarray, tv_weight: float) -> tuple[float, np.ndarray]:
-        """`loss_and_gradient` of internal-order parameters ``xp`` (T, 5), unchecked: the solvers' inner loop."""
-        return _objective(xp, self.problem, terms, self.kernel, tv_weight)
+    def lane_terms(self, terms: np.ndarray, out: np.ndarray | None = None) -> np.ndarray | None:
+        """``terms`` laid out as this model's lanes (`freqbrdf.estimate.optimise.lanes.lane_terms`), into
+        ``out`` if given; None without lanes."""
+        return None if self.lane_pairs is None else lanes.lane_terms(terms, self.lane_pairs, out)
+
+    def objective(self, xp: np.ndarray, terms: np.ndarray, tv_weight: float,
+                  lane_terms: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+        """`loss_and_gradient` of internal-order parameters ``xp`` (T, 5), unchecked: the solvers' inner
+        loop; from ``lane_terms`` (`lane_terms` of the same ``terms``) where given."""
+        lane = None if lane_terms is None else (self.lane_pairs, lane_terms)
+        return _objective(xp, self.problem, terms, self.kernel, tv_weight, lane)
 
     def grid_start(self, terms: np.ndarray, roughness: np.ndarray, metallic: np.ndarray, workers: int) -> np.ndarray:
         """`grid_start` of this model."""
-        return grid_start(self.problem, terms, self.kernel, roughness, metallic, workers)
+        return grid_start(self.problem, terms, self.kernel, roughness, metallic, workers, self.lane_pairs)

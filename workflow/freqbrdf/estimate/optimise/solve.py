@@ -248,6 +248,7 @@ class _RefittedTerms:
         self.roughness = np.empty(problem.n_texels)
         self.roughness[problem.perm] = xp[:, 3]
         self.terms = model.light_terms(self.roughness, settings.workers)
+        self.lane = model.lane_terms(self.terms)  # the same terms as the objective's vectorised kernel reads them
         self.fitted = self.roughness[problem.observed]  # roughness each texel's light was fitted at
 
     def refit(self, xp: np.ndarray) -> int:
@@ -262,6 +263,7 @@ class _RefittedTerms:
         slots = np.nonzero(np.abs(now - self.fitted) > self.settings.refit_tolerance)[0]
         if slots.size:
             self.model.refit(self.terms, self.roughness, slots, self.settings.workers)
+            self.model.lane_terms(self.terms, self.lane)
             self.fitted[slots] = now[slots]
         return int(slots.size)
 
@@ -293,7 +295,7 @@ def _descend_lm(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings)
     for sweep in range(settings.sweeps):
         if sweep and sweep % settings.sweep_refit_every == 0 and light.refit(xp):
             last_refit = sweep
-        loss = model.objective(xp, light.terms, settings.tv_weight)[0]
+        loss = model.objective(xp, light.terms, settings.tv_weight, light.lane)[0]
         if sweep > last_refit and curve[-1] - loss < settings.sweep_tolerance * curve[-1]:
             break
         curve.append(loss)
@@ -329,10 +331,10 @@ def _descend(xp: np.ndarray, model: ForwardModel, settings: OptimiseSettings) ->
     for it in range(settings.iterations):
         if it and it % settings.refit_every == 0:
             light.refit(xp)
-        curve[it], grad = model.objective(xp, light.terms, settings.tv_weight)
+        curve[it], grad = model.objective(xp, light.terms, settings.tv_weight, light.lane)
         if curve[it] < best_loss:
             best[:], best_loss = xp, curve[it]
         # `adam_step` in place, in one pass (the update the loop's own time goes to besides the objective)
         adam_update(xp, grad, m1, m2, it + 1, settings.lr, settings.betas, settings.eps, floor)
-    curve[-1] = model.objective(xp, light.terms, settings.tv_weight)[0]
+    curve[-1] = model.objective(xp, light.terms, settings.tv_weight, light.lane)[0]
     return (xp if curve[-1] <= curve[0] else best), curve, light.terms
