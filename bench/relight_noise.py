@@ -32,6 +32,7 @@ import yaml
 from freqbrdf import layout
 from freqbrdf.artefacts import read_svbrdf
 from freqbrdf.config import with_defaults
+from freqbrdf.config import relight_envs
 from freqbrdf.util.seeds import derived_seed
 from freqbrdf.report.relight_metrics import HDR_SCALES, HdrScoring, psnr_h, scored_pixels
 from freqbrdf.scene.cameras import mitsuba_to_world, rig_cameras
@@ -44,10 +45,8 @@ SEEDINGS = ("shared", "independent", "high")  # the run's spp with the reference
 
 
 def held_out(config: dict, env: str) -> list[str]:
-    relight = config["evaluate"]["relight_envs"]
-    if relight == "held_out":
-        return [e for e in config["envs"] if e != env]
-    return list(config["envs"]) if relight == "all" else list(relight)
+    """The environments the run relit the capture lit by ``env`` under."""
+    return relight_envs(config["envs"], config["evaluate"]["relight_envs"], env, [env])
 
 
 def score_rows(method: str, env: str, seeding: str, images, refs, masks, clip: float) -> list[dict]:

@@ -29,6 +29,7 @@ import pandas as pd
 import yaml
 
 from freqbrdf import layout
+from freqbrdf.config import relight_envs
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.seeds import derived_seed
 from freqbrdf.artefacts import read_svbrdf
@@ -65,7 +66,7 @@ def main() -> None:
     mi = setup_mitsuba(threads=args.threads)
 
     rows = []
-    for relight_env in [name for name in config["envs"] if name != env]:
+    for relight_env in relight_envs(config["envs"], "held_out", env, [env]):
         test = layout.located(layout.CAPTURE, object=obj, env=relight_env, split="test")
         cameras = cameras_from_json(read_json(test / "cameras.json"), test / "cameras.json")
         references, coverage, _ = read_views(test, cameras.names, cameras.width, cameras.height)

@@ -1,14 +1,18 @@
 """Configuration: the shipped presets validate; every mistake is one line naming the key."""
 
 import copy
+import re
 import subprocess
 import sys
 
 import pytest
 import yaml
 from snakemake.utils import update_config
+from workflow_runs import planned_jobs
 
-from freqbrdf.config import ConfigError, check_config
+from freqbrdf.config import BUILT_IN_ENVS, ConfigError, check_config, relight_envs, with_built_in_envs
+from freqbrdf.scene.envmaps import ENV_KINDS
+from freqbrdf.scene.hdri import MAPS
 from freqbrdf.util.seeds import derived_seed
 from freqbrdf.util.sizing import SIZE_KINDS, size_factor
 
@@ -83,14 +87,60 @@ def test_mistakes_give_one_line_naming_the_key(repo, schema, default, edit, mess
 
 
 def test_an_undefined_environment_says_how_to_define_one_and_the_example_works(schema, default):
-    """A newcomer writes capture_envs: [studio], the kind, not a name under envs: the message shows
-    a definition, and that definition, pasted in, passes."""
+    """A newcomer writes capture_envs: [studio], the kind, not a name under envs: the message names
+    the built-ins and shows a definition, and either, named or pasted in, passes."""
     default["capture_envs"] = ["studio"]
     with pytest.raises(ConfigError, match=r"capture_envs: \['studio'\] not defined under envs") as info:
         check_config(copy.deepcopy(default), schema)
-    example = str(info.value).split("e.g. ", 1)[1].split(" (config/tiny.yaml", 1)[0]
-    update_config(default, yaml.safe_load(example))
+    assert all(name in str(info.value) for name in BUILT_IN_ENVS)
+    named = copy.deepcopy(default) | {"capture_envs": ["procedural_studio"]}
+    with_built_in_envs(named)
+    check_config(named, schema)
+    update_config(default, yaml.safe_load(str(info.value).split("e.g. ", 1)[1]))
     check_config(default, schema)
+
+
+def test_built_in_environments_are_one_of_each_procedural_kind_named_apart_from_the_maps():
+    assert sorted(settings["kind"] for settings in BUILT_IN_ENVS.values()) == sorted(ENV_KINDS)
+    assert not set(BUILT_IN_ENVS) & set(MAPS)
+
+
+def test_a_config_names_a_built_in_environment_and_its_own_definition_replaces_it(schema, default):
+    default["capture_envs"] = ["procedural_museum"]
+    default["envs"]["procedural_studio"] = {"kind": "studio", "seed": 7}
+    with_built_in_envs(default)
+    check_config(default, schema)
+    assert list(default["envs"]) == ["sky", "lobby", "city", "procedural_studio", "procedural_museum",
+                                      "procedural_sunny", "procedural_overcast"]
+    assert default["envs"]["procedural_studio"] == {"kind": "studio", "seed": 7}
+    assert default["envs"]["procedural_museum"] == dict(BUILT_IN_ENVS["procedural_museum"])
+
+
+def test_relighting_keeps_to_the_capture_s_kind_of_light():
+    envs = {"sky": {"kind": "hdri"}, "lobby": {"kind": "hdri"}, "studio": {"kind": "studio"}, "rain": {"kind": "overcast"}}
+    assert relight_envs(envs, "held_out", "sky", ["sky"]) == ["lobby"]
+    assert relight_envs(envs, "held_out", "studio", ["studio"]) == ["rain"]
+    assert relight_envs(envs, "held_out", "sky", ["sky", "lobby"]) == []  # a merge of both captures
+    assert relight_envs(envs, "all", "rain", ["rain"]) == ["studio", "rain"]
+    assert relight_envs(envs, ["studio", "sky"], "sky", ["sky"]) == ["studio", "sky"]  # a list is taken as given
+
+
+def test_a_run_under_built_in_light_plans_neither_the_asset_package_nor_an_envs_block(repo, tmp_path):
+    """objects, capture_envs and methods alone: procedural light needs no envs block, and relit under
+    the other built-ins it never fetches the captured maps' package; the default run does."""
+    config = tmp_path / "procedural.yaml"
+    config.write_text("objects: [sphere]\ncapture_envs: [procedural_studio]\nmethods: [spectrum, freq]\n")
+    plans = {}
+    for name, extra in (("procedural", ["--configfile", str(config)]), ("default", [])):
+        done = subprocess.run([sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"),
+                               "-d", str(tmp_path), "-n", *extra], capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr[-2000:]
+        plans[name] = done.stdout
+    assert "fetch_asset_package" in planned_jobs(plans["default"])
+    jobs = planned_jobs(plans["procedural"])
+    assert "fetch_asset_package" not in jobs and jobs["build_env"] == 4 and jobs["relight"] == 2
+    built = set(re.findall(r"results/envs/(\w+)\.exr", plans["procedural"]))
+    assert built == set(BUILT_IN_ENVS)
 
 
 def test_snakemake_stops_at_once_on_a_bad_key(repo, tmp_path):

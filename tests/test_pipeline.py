@@ -21,7 +21,7 @@ from freqbrdf.util.io import read_exr, read_json, read_png
 from freqbrdf.scene.ply import read_ply
 from freqbrdf.report.tables.summary import SUMMARY_KEYS
 from synthetic import rewrite_z_up
-from workflow_runs import planned_jobs, snakemake
+from workflow_runs import planned_jobs, snakemake, without_npm
 
 
 def tiny_methods(repo) -> list[str]:
@@ -34,8 +34,9 @@ def tiny_methods(repo) -> list[str]:
 
 @pytest.fixture(scope="module")
 def run(repo, tmp_path_factory):
+    """The tiny preset's run, with npm failing as if absent: procedural light and shapes need no package."""
     workdir = tmp_path_factory.mktemp("pipeline")
-    snakemake(repo, workdir)
+    snakemake(repo, workdir, env=without_npm(tmp_path_factory.mktemp("no_npm")))
     return workdir
 
 
@@ -53,6 +54,7 @@ def test_every_output_is_written(run):
         assert (base / f"captures/sphere/{env}/test/cameras.json").is_file()
     assert (base / "envs/spectra.png").is_file()
     assert not (base / "envs/sky.exr").exists()  # the default's captured map: defined, unused here
+    assert not (base / "resources").exists()  # nor the package it comes from (the run had no npm)
     assert not (base / "captures/sphere/sunny/train").exists()  # not a capture env in the tiny preset
     for split in ("train", "test"):
         bench = (base / f"benchmarks/render_capture/sphere_studio_{split}.tsv").read_text().splitlines()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 from freqbrdf.capture.sfm_options import CONFIG_PREFIX, SfmOptions
@@ -18,6 +19,20 @@ from freqbrdf.methods import METHODS
 from freqbrdf.scene.meshes import OBJECTS
 from freqbrdf.scene.scans import SCANS
 from freqbrdf.util.io import atomic_path
+
+
+# One procedural environment of each kind (freqbrdf.scene.envmaps) that every config may name
+# without defining it under ``envs`` (`with_built_in_envs`), in config/tiny.yaml's settings.
+# Named apart from the captured maps (freqbrdf.scene.hdri.MAPS has a "studio"), so that a name
+# says which light it is. Here, not in envmaps, so that it is config: rules that build maps
+# do not rerun when it is edited, only those whose environment's settings change.
+BUILT_IN_ENVS: Mapping[str, Mapping[str, Any]] = MappingProxyType({
+    "procedural_studio": MappingProxyType({"kind": "studio", "seed": 1, "lights": 3, "light_radius_deg": 22.0}),
+    "procedural_museum": MappingProxyType({"kind": "museum", "seed": 2, "lamps": 9, "lamp_radius_deg": 2.5}),
+    "procedural_sunny": MappingProxyType({"kind": "sunny", "sun_elevation_deg": 40.0, "sun_azimuth_deg": 60.0,
+                                          "turbidity": 3.0, "ground_albedo": 0.25}),
+    "procedural_overcast": MappingProxyType({"kind": "overcast", "ground_albedo": 0.25, "horizon_blur_deg": 12.0}),
+})
 
 
 class ConfigError(ValueError):
@@ -52,6 +67,48 @@ def with_defaults(config: dict[str, Any], default: str | Path) -> None:
     merged = merge_config(yaml.safe_load(path.read_text()) or {}, config)
     config.clear()
     config.update(merged)
+
+
+def with_built_in_envs(config: dict[str, Any]) -> None:
+    """Add to ``config["envs"]``, in place and after its own, each built-in procedural
+    environment (`BUILT_IN_ENVS`) it does not define itself.
+
+    A run lit by procedural light then needs no ``envs`` block; one of the config's own of the
+    same name replaces the built-in.
+    """
+    own = dict(config.get("envs") or {})
+    config["envs"] = own | {name: dict(settings) for name, settings in BUILT_IN_ENVS.items() if name not in own}
+
+
+def is_captured(settings: Mapping[str, Any]) -> bool:
+    """Whether an ``envs`` entry is a captured map (kind hdri, read from the asset package)."""
+    return settings["kind"] == "hdri"
+
+
+def relight_envs(envs: Mapping[str, Mapping[str, Any]], choice: str | Sequence[str], env: str,
+                 seen: Sequence[str]) -> list[str]:
+    """The environments a synthetic capture's estimate is relit under (``evaluate.relight_envs``).
+
+    Parameters
+    ----------
+    envs : mapping
+        The run's ``envs`` (`with_built_in_envs`), name -> settings, in config order.
+    choice : str or sequence of str
+        ``held_out``: every environment of ``envs`` lit the way ``env`` is (a captured map, or
+        procedural light) except those in ``seen``; ``all``: every one lit that way; else the
+        names themselves. Keeping to the capture's kind of light means a run under procedural
+        light never needs the captured maps' package, nor a run under captured maps the
+        built-in procedural ones.
+    env : str
+        The environment of the capture (for a merge, one of those merged).
+    seen : sequence of str
+        The environments the estimate has seen: the capture's own, or every capture
+        environment of a merge.
+    """
+    if not isinstance(choice, str):
+        return list(choice)
+    family = [name for name, settings in envs.items() if is_captured(settings) == is_captured(envs[env])]
+    return family if choice == "all" else [name for name in family if name not in seen]
 
 
 def reports_last_run(argv: Sequence[str], overwrite_config: Mapping[str, Any]) -> bool:
@@ -158,9 +215,9 @@ def _check_schema(config: dict[str, Any], schema: str | Path) -> None:
         raise ConfigError(f"config key {_key_path(error.absolute_path)}: {error.message}") from None
 
 
-# An environment is a name under ``envs`` with its settings; a newcomer often writes the kind instead.
-_DEFINE_ONE = ("; define each under envs with its kind and settings, e.g. envs: {studio: {kind: studio, seed: 1, "
-               "lights: 3, light_radius_deg: 22.0}} (config/tiny.yaml defines one of every procedural kind)")
+# An environment is a name under ``envs`` with its settings (or a built-in); a newcomer often writes the kind instead.
+_DEFINE_ONE = (f"; name a built-in ({', '.join(BUILT_IN_ENVS)}) or define each under envs with its kind and "
+               "settings, e.g. envs: {studio: {kind: studio, seed: 1, lights: 3, light_radius_deg: 22.0}}")
 
 
 def _check_env_names(config: dict[str, Any]) -> None:

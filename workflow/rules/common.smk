@@ -5,6 +5,7 @@ import math
 from dataclasses import asdict
 
 from freqbrdf import layout
+from freqbrdf.config import relight_envs as config_relight_envs
 from freqbrdf.util.seeds import derived_seed
 from freqbrdf.util.sizing import size_factor
 from freqbrdf.util.mitsuba_setup import planned_variant
@@ -66,14 +67,11 @@ def scene_settings(wildcards):
 
 
 def relight_envs(env, method):
-    """Environments a synthetic capture's estimates are relit under (config evaluate.relight_envs).
+    """Environments a synthetic capture's estimates are relit under (freqbrdf.config.relight_envs):
     held_out leaves out the capture's own environment and, for a merge of all the object's
     captures (merge_svbrdf), every capture environment: the merge has seen them all."""
-    choice = config["evaluate"]["relight_envs"]
-    if choice == "held_out":
-        seen = CAPTURE_ENVS if METHOD_REGISTRY[method].rule == "merge_svbrdf" else [env]
-        return [e for e in DEFINED_ENVS if e not in seen]
-    return DEFINED_ENVS if choice == "all" else list(choice)
+    seen = CAPTURE_ENVS if METHOD_REGISTRY[method].rule == "merge_svbrdf" else [env]
+    return config_relight_envs(config["envs"], config["evaluate"]["relight_envs"], env, seen)
 
 
 # Every relit image set (object, env, poses, method, relight_env): synthetic captures
