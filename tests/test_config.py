@@ -47,6 +47,8 @@ def test_shipped_configs_validate(repo, schema, default, preset):
         (lambda c: c.update(capture_envs=["beach"]), r"config key capture_envs: \['beach'\] not defined under envs"),
         (lambda c: c["evaluate"].update(relight_envs=["beach"]), r"config key evaluate\.relight_envs: \['beach'\] not defined"),
         (lambda c: c["evaluate"].update(relight_envs="others"), r"config key evaluate\.relight_envs: 'others' is not valid"),
+        (lambda c: c["evaluate"].update(relight_methods=["freq", "nerf"]),
+         r"config key evaluate\.relight_methods: \['nerf'\] are not among the run's methods"),
         (lambda c: c["render"].update(fov_deg=10.0), r"config key render\.fov_deg: 10.0 degrees is too narrow"),
         (lambda c: c.pop("seed"), r"'seed' is a required property"),
         (lambda c: c["poses"]["colmap"].update(peak_treshold=0.01), r"config key poses\.colmap\.peak_treshold: unknown option"),
@@ -123,6 +125,18 @@ def test_relighting_keeps_to_the_capture_s_kind_of_light():
     assert relight_envs(envs, "held_out", "sky", ["sky", "lobby"]) == []  # a merge of both captures
     assert relight_envs(envs, "all", "rain", ["rain"]) == ["studio", "rain"]
     assert relight_envs(envs, ["studio", "sky"], "sky", ["sky"]) == ["studio", "sky"]  # a list is taken as given
+
+
+def test_only_the_methods_relight_methods_names_are_relit(repo, tmp_path):
+    """The tiny preset relights each method's estimate in one job; a list leaves the others out."""
+    command = [sys.executable, "-m", "snakemake", "-s", str(repo / "workflow" / "Snakefile"), "-d", str(tmp_path), "-n",
+               "--configfile", str(repo / "config" / "tiny.yaml")]
+    every = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    some = subprocess.run([*command, "--config", "evaluate={'relight_methods': ['freq', 'mitsuba']}"],
+                          capture_output=True, text=True, timeout=120)
+    assert every.returncode == 0 and some.returncode == 0, some.stderr[-2000:]
+    assert planned_jobs(every.stdout)["relight"] > 2 and planned_jobs(some.stdout)["relight"] == 2
+    assert set(re.findall(r"output: results/relight/sphere/studio/gt/([\w+]+)$", some.stdout, re.M)) == {"freq", "mitsuba"}
 
 
 def test_a_run_under_built_in_light_plans_neither_the_asset_package_nor_an_envs_block(repo, tmp_path):

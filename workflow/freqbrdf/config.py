@@ -234,6 +234,11 @@ def _check_env_names(config: dict[str, Any]) -> None:
     unknown = [m for m in config["methods"] if m not in METHODS]
     if unknown:
         raise ConfigError(f"config key methods: {unknown} are not registered methods (freqbrdf.methods: {list(METHODS)})")
+    relit = config["evaluate"]["relight_methods"]
+    unknown = [m for m in relit if m not in config["methods"]] if isinstance(relit, list) else []
+    if unknown:
+        raise ConfigError(f"config key evaluate.relight_methods: {unknown} are not among the run's methods "
+                          f"({config['methods']})")
 
 
 def _check_colmap(colmap: dict[str, Any]) -> None:

@@ -67,9 +67,11 @@ def scene_settings(wildcards):
 
 
 def relight_envs(env, method):
-    """Environments a synthetic capture's estimates are relit under (freqbrdf.config.relight_envs):
-    held_out leaves out the capture's own environment and, for a merge of all the object's
+    """Environments a synthetic capture's estimates are relit under (freqbrdf.config.relight_envs;
+    none for a method evaluate.relight_methods leaves out): held_out leaves out the capture's own environment and, for a merge of all the object's
     captures (merge_svbrdf), every capture environment: the merge has seen them all."""
+    if config["evaluate"]["relight_methods"] != "all" and method not in config["evaluate"]["relight_methods"]:
+        return []
     seen = CAPTURE_ENVS if METHOD_REGISTRY[method].rule == "merge_svbrdf" else [env]
     return config_relight_envs(config["envs"], config["evaluate"]["relight_envs"], env, seen)
 
