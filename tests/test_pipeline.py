@@ -498,6 +498,14 @@ def test_report_builds_and_a_headless_browser_shows_tables_and_figures(repo, run
                    "results/figures/sphere/studio/gt/maps.png", "results/figures/sphere/studio/gt/relight.png",
                    "viewer/sphere/studio/gt/viewer.html"):  # the maps caption links the viewer
         assert result in html
+    # The rule graph draws each rule of the run once (Snakemake's own: once per level of the job
+    # DAG, 59 nodes for 36 rules on this run), every edge pointing down the column.
+    graph = {d["name"]: d["values"] for d in json.loads(re.search(r"var rulegraph_spec = (\{.*?\});\s*\n", html,
+                                                                    re.S).group(1))["data"] if "values" in d}
+    rules = [node["rule"] for node in graph["node-data"]]
+    ran = {path.parent.name if path.parent.name != "logs" else path.stem for path in (run / "results/logs").rglob("*.log")}
+    assert len(rules) == len(set(rules)) and set(rules) - {"all"} <= ran
+    assert all(link["source"] < link["target"] for link in graph["link-data"] + graph["link-data-direct"])
     shots = tmp_path / "shots"
     screenshot = subprocess.run([sys.executable, str(repo / "bench/report_screenshot.py"), str(report), "--out", str(shots)],
                                 capture_output=True, text=True, timeout=900)

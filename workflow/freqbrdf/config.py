@@ -135,6 +135,11 @@ def reports_last_run(argv: Sequence[str], overwrite_config: Mapping[str, Any]) -
     return report and "--report-after-run" not in args and not overwrite_config
 
 
+def builds_report(argv: Sequence[str]) -> bool:
+    """Whether this invocation builds a Snakemake report (``--report``, ``--report-after-run``)."""
+    return any(a.startswith("--report") for a in argv[1:])
+
+
 def record_run_config(config: Mapping[str, Any], path: str | Path) -> None:
     """Write ``config`` (the run's, complete) to the YAML file ``path``, atomically.
 
