@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from freqbrdf.config import merge_config, with_defaults
+from freqbrdf.config import merge_config, run_config
 from freqbrdf.util.seeds import derived_seed
 from freqbrdf.estimate.mitsuba import constant_textures, optimise_textures
 from freqbrdf.estimate.mitsuba_settings import InverseSettings
@@ -100,8 +100,7 @@ def main() -> None:
     unknown = [s for s in args.settings if s not in named]
     if unknown:
         raise SystemExit(f"--settings: unknown {unknown} (known: {sorted(named)})")
-    config = yaml.safe_load(Path(args.config).read_text()) or {}
-    with_defaults(config, REPO / "config" / "config.yaml")
+    config = run_config(args.config, REPO / "config" / "config.yaml")
     config = merge_config(config, yaml.safe_load(args.override) or {}) if args.override else config
     default = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
     reported = {f"{o}/{e}" for o in default["objects"] for e in default["capture_envs"]}

@@ -27,12 +27,10 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from freqbrdf import layout
 from freqbrdf.artefacts import read_svbrdf
-from freqbrdf.config import with_defaults
-from freqbrdf.config import relight_envs
+from freqbrdf.config import relight_envs, run_config
 from freqbrdf.util.seeds import derived_seed
 from freqbrdf.report.relight_metrics import HDR_SCALES, HdrScoring, psnr_h, scored_pixels
 from freqbrdf.scene.cameras import mitsuba_to_world, rig_cameras
@@ -44,7 +42,7 @@ from freqbrdf.util.mitsuba_setup import setup_mitsuba
 SEEDINGS = ("shared", "independent", "high")  # the run's spp with the reference's seed, another seed; --high-spp
 
 
-def held_out(config: dict, env: str) -> list[str]:
+def relit_under(config: dict, env: str) -> list[str]:
     """The environments the run relit the capture lit by ``env`` under."""
     return relight_envs(config["envs"], config["evaluate"]["relight_envs"], env, [env])
 
@@ -89,9 +87,7 @@ def main() -> None:
     args = parser.parse_args()
 
     obj, env = args.capture.split("/")
-    with open(args.config) as f:
-        config = yaml.safe_load(f) or {}
-    with_defaults(config, Path(__file__).resolve().parents[1] / "config" / "config.yaml")
+    config = run_config(args.config, Path(__file__).resolve().parents[1] / "config" / "config.yaml")
     render, root = config["render"], args.results
     mi = setup_mitsuba(args.variant, args.threads)
     print(f"variant {mi.variant()}", flush=True)
@@ -112,7 +108,7 @@ def main() -> None:
     print(f"{obj}/{env}: {len(estimates)} methods ({', '.join(estimates)}), {args.views} views", flush=True)
 
     rows, start = [], time.perf_counter()
-    for relight in held_out(config, env):
+    for relight in relit_under(config, env):
         envmap = read_exr(layout.located(layout.ENVMAP, root, env=relight))
         seed = derived_seed(config["seed"], "render", obj, relight, "test")  # the reference views' (rule relight)
         seeds = {"shared": seed, "independent": derived_seed(config["seed"], "bench", obj, relight, "independent"),

@@ -26,10 +26,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from freqbrdf import layout
-from freqbrdf.config import relight_envs
+from freqbrdf.config import relight_envs, run_config
 from freqbrdf.scene.cameras import cameras_from_json
 from freqbrdf.util.seeds import derived_seed
 from freqbrdf.artefacts import read_svbrdf
@@ -59,14 +58,14 @@ def main() -> None:
     args = parser.parse_args()
 
     obj, env = args.capture.split("/")
-    config = yaml.safe_load(Path(args.config).read_text())
+    config = run_config(args.config, Path(__file__).resolve().parents[1] / "config" / "config.yaml")
     render = config["render"]
     truth = read_svbrdf({n: layout.located(layout.OBJECT_TEXTURE, object=obj, texture=n) for n in TEXTURES})
     estimate = read_svbrdf(layout.located(layout.ESTIMATE, object=obj, env=env, poses=args.poses, method=args.method))
     mi = setup_mitsuba(threads=args.threads)
 
     rows = []
-    for relight_env in relight_envs(config["envs"], "held_out", env, [env]):
+    for relight_env in relight_envs(config["envs"], config["evaluate"]["relight_envs"], env, [env]):
         test = layout.located(layout.CAPTURE, object=obj, env=relight_env, split="test")
         cameras = cameras_from_json(read_json(test / "cameras.json"), test / "cameras.json")
         references, coverage, _ = read_views(test, cameras.names, cameras.width, cameras.height)

@@ -10,7 +10,8 @@ import yaml
 from snakemake.utils import update_config
 from workflow_runs import planned_jobs
 
-from freqbrdf.config import BUILT_IN_ENVS, ConfigError, check_config, relight_envs, with_built_in_envs
+from freqbrdf.config import (BUILT_IN_ENVS, ConfigError, builds_report, check_config, relight_envs, run_config,
+                             with_built_in_envs)
 from freqbrdf.scene.envmaps import ENV_KINDS
 from freqbrdf.scene.hdri import MAPS
 from freqbrdf.util.seeds import derived_seed
@@ -119,12 +120,21 @@ def test_a_config_names_a_built_in_environment_and_its_own_definition_replaces_i
 
 
 def test_relighting_keeps_to_the_capture_s_kind_of_light():
-    envs = {"sky": {"kind": "hdri"}, "lobby": {"kind": "hdri"}, "studio": {"kind": "studio"}, "rain": {"kind": "overcast"}}
+    envs = {"sky": {"kind": "hdri", "map": "sky"}, "lobby": {"kind": "hdri", "map": "lobby"}, "studio": {"kind": "studio"},
+            "rain": {"kind": "overcast"}}
     assert relight_envs(envs, "held_out", "sky", ["sky"]) == ["lobby"]
     assert relight_envs(envs, "held_out", "studio", ["studio"]) == ["rain"]
     assert relight_envs(envs, "held_out", "sky", ["sky", "lobby"]) == []  # a merge of both captures
     assert relight_envs(envs, "all", "rain", ["rain"]) == ["studio", "rain"]
     assert relight_envs(envs, ["studio", "sky"], "sky", ["sky"]) == ["studio", "sky"]  # a list is taken as given
+    # one light under two names (a preset's studio and the built-in) is one light: held out
+    # from a studio capture, and relit under once
+    twice = envs | {"procedural_studio": {"kind": "studio"}, "procedural_rain": {"kind": "overcast"}}
+    assert relight_envs(twice, "held_out", "studio", ["studio"]) == ["rain"]
+    assert relight_envs(twice, "held_out", "procedural_studio", ["procedural_studio"]) == ["rain"]
+    assert relight_envs(twice, "all", "procedural_studio", ["procedural_studio"]) == ["studio", "rain"]
+    with pytest.raises(ConfigError, match=r"config key envs: 'beach' is not defined"):
+        relight_envs(envs, "held_out", "beach", ["beach"])
 
 
 def test_only_the_methods_relight_methods_names_are_relit(repo, tmp_path):
@@ -288,6 +298,19 @@ def test_a_report_with_no_config_of_its_own_takes_the_last_runs():
     assert not reports_last_run(["snakemake", "--cores", "2", "--report", "r.html", "--report-after-run"], {})
     for argv in (["--cores", "2"], ["-n"], ["--reporter", "html"], ["--report-stylesheet", "s.css"], ["--unlock"]):
         assert not reports_last_run(["snakemake", *argv], {})
+
+
+def test_a_report_is_built_by_report_and_report_after_run_only():
+    assert builds_report(["snakemake", "--report", "r.html"]) and builds_report(["snakemake", "--report-after-run"])
+    assert not builds_report(["snakemake", "--cores", "2", "results/report.html"])
+
+
+def test_a_bench_reads_a_preset_as_the_snakefile_does(repo, tmp_path):
+    config = run_config(repo / "config" / "tiny.yaml", repo / "config" / "config.yaml")
+    assert config["objects"] == ["sphere"] and config["render"]["resolution"] == 32  # the preset's
+    assert config["optimise"]["lmax"] == 20 and "procedural_sunny" in config["envs"]  # the default's, the built-ins
+    with pytest.raises(ConfigError, match="nope.yaml: no such config file"):
+        run_config(tmp_path / "nope.yaml", repo / "config" / "config.yaml")
 
 
 def test_the_recorded_run_config_replaces_the_config_whole(tmp_path):

@@ -688,7 +688,8 @@ RUN = {"seed": 3, "preset": {"name": "default", "smoke_test": False}, "mitsuba":
        "objects": ["sphere", "torus"], "real_captures": ["orb"], "capture_envs": ["studio"],
        "envs": ["studio", "museum"], "env_kinds": {"studio": "studio", "museum": "museum"},
        "render": {"train_views": 24, "test_views": 2, "resolution": 256, "spp": 64},
-       "poses": "gt", "methods": ["freq", "freq_noshadow"], "relight_envs": "held_out"}
+       "poses": "gt", "methods": ["freq", "freq_noshadow"], "relight_envs": "held_out",
+       "relight_methods": "all"}
 CPU_TIMING = timing_note("llvm_ad_rgb")
 
 
@@ -718,6 +719,8 @@ def test_run_facts_state_the_configuration_with_display_names():
     assert '<p class="warning"><b>A smoke test:</b>' in page
     listed = dict(RUN, relight_envs=["museum"], real_captures=[])
     assert run_facts(listed)["Relit under"].startswith("museum,") and run_facts(listed)["Real captures"] == "none"
+    some = run_facts(dict(RUN, relight_methods=["freq"]))["Relit under"]
+    assert "held out" in some and "; only the estimates of freq, of" in some
 
 
 def test_run_facts_call_a_scan_a_scan_and_a_captured_map_captured():

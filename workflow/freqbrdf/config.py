@@ -69,6 +69,21 @@ def with_defaults(config: dict[str, Any], default: str | Path) -> None:
     config.update(merged)
 
 
+def run_config(path: str | Path, default: str | Path) -> dict[str, Any]:
+    """The config a run of the YAML file ``path`` (a preset, or a run's recorded config) had:
+    layered on the YAML file ``default`` (`with_defaults`), with the built-in environments
+    (`with_built_in_envs`), as the Snakefile builds it; for the benches."""
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such config file")
+    config = yaml.safe_load(path.read_text()) or {}
+    with_defaults(config, default)
+    with_built_in_envs(config)
+    return config
+
+
 def with_built_in_envs(config: dict[str, Any]) -> None:
     """Add to ``config["envs"]``, in place and after its own, each built-in procedural
     environment (`BUILT_IN_ENVS`) it does not define itself.
@@ -95,20 +110,39 @@ def relight_envs(envs: Mapping[str, Mapping[str, Any]], choice: str | Sequence[s
         The run's ``envs`` (`with_built_in_envs`), name -> settings, in config order.
     choice : str or sequence of str
         ``held_out``: every environment of ``envs`` lit the way ``env`` is (a captured map, or
-        procedural light) except those in ``seen``; ``all``: every one lit that way; else the
-        names themselves. Keeping to the capture's kind of light means a run under procedural
-        light never needs the captured maps' package, nor a run under captured maps the
-        built-in procedural ones.
+        procedural light) whose light the estimate has not seen; ``all``: every one lit that
+        way; else the names themselves. Keeping to the capture's kind of light means a run
+        under procedural light never needs the captured maps' package, nor a run under
+        captured maps the built-in procedural ones. A light defined under two names (a
+        preset's ``studio`` and the built-in ``procedural_studio``) counts once, under its
+        first name.
     env : str
         The environment of the capture (for a merge, one of those merged).
     seen : sequence of str
-        The environments the estimate has seen: the capture's own, or every capture
-        environment of a merge.
+        The environments the estimate has seen: the capture's own, or those of every capture
+        a merge merges.
+
+    Returns
+    -------
+    list of str
+        Names in ``envs`` order (a list ``choice``: its own order).
+
+    Raises
+    ------
+    ConfigError
+        ``env`` is not under ``envs``.
     """
     if not isinstance(choice, str):
         return list(choice)
-    family = [name for name, settings in envs.items() if is_captured(settings) == is_captured(envs[env])]
-    return family if choice == "all" else [name for name in family if name not in seen]
+    if env not in envs:
+        raise ConfigError(f"config key envs: {env!r} is not defined (defined: {sorted(envs)})")
+    lights, names = [], []
+    for name, settings in envs.items():
+        if is_captured(settings) == is_captured(envs[env]) and dict(settings) not in lights:
+            lights.append(dict(settings))
+            names.append(name)
+    seen_lights = [dict(envs[name]) for name in seen if name in envs]
+    return names if choice == "all" else [name for name in names if dict(envs[name]) not in seen_lights]
 
 
 def reports_last_run(argv: Sequence[str], overwrite_config: Mapping[str, Any]) -> bool:

@@ -5,7 +5,7 @@ import math
 from dataclasses import asdict
 
 from freqbrdf import layout
-from freqbrdf.config import relight_envs as config_relight_envs
+from freqbrdf.config import is_captured, relight_envs as config_relight_envs
 from freqbrdf.util.seeds import derived_seed
 from freqbrdf.util.sizing import size_factor
 from freqbrdf.util.mitsuba_setup import planned_variant
@@ -66,20 +66,22 @@ def scene_settings(wildcards):
     return settings
 
 
-def relight_envs(env, method):
-    """Environments a synthetic capture's estimates are relit under (freqbrdf.config.relight_envs;
-    none for a method evaluate.relight_methods leaves out): held_out leaves out the capture's own environment and, for a merge of all the object's
-    captures (merge_svbrdf), every capture environment: the merge has seen them all."""
-    if config["evaluate"]["relight_methods"] != "all" and method not in config["evaluate"]["relight_methods"]:
+def relight_envs(obj, env, method):
+    """Environments a synthetic capture's estimates are relit under (freqbrdf.config.relight_envs),
+    none for a method evaluate.relight_methods leaves out. What the estimate has seen: its
+    capture's environment, or for a merge (merge_svbrdf) those of every capture of the object."""
+    relit = config["evaluate"]["relight_methods"]
+    if relit != "all" and method not in relit:
         return []
-    seen = CAPTURE_ENVS if METHOD_REGISTRY[method].rule == "merge_svbrdf" else [env]
+    merged = METHOD_REGISTRY[method].rule == "merge_svbrdf"
+    seen = [e for o, e in CAPTURES if o == obj] if merged else [env]
     return config_relight_envs(config["envs"], config["evaluate"]["relight_envs"], env, seen)
 
 
 # Every relit image set (object, env, poses, method, relight_env): synthetic captures
 # only; a real capture's test views are relit under their own maps (rule relight_real).
 # Rule relight writes those of one estimate into one directory, relit_dir(...)/{relight_env}.
-RELIGHTS = [(o, e, p, m, r) for o, e, p in SCORED for m in METHODS for r in relight_envs(e, m)]
+RELIGHTS = [(o, e, p, m, r) for o, e, p in SCORED for m in METHODS for r in relight_envs(o, e, m)]
 # The environments this run lights a capture with or relights under, in config order: one that
 # `envs` defines for other presets (the default's captured maps under config/tiny.yaml) costs nothing.
 ENVS = [e for e in DEFINED_ENVS if e in {e for _, e in SYNTHETIC_CAPTURES} | {r for *_, r in RELIGHTS}]
@@ -212,7 +214,7 @@ def object_package(wildcards):
 
 def env_package(wildcards):
     """The package an environment of kind hdri is read from; nothing for a procedural one."""
-    return {"package": ASSET_PACKAGE} if config["envs"][wildcards.env]["kind"] == "hdri" else {}
+    return {"package": ASSET_PACKAGE} if is_captured(config["envs"][wildcards.env]) else {}
 
 
 def pose_dir(wildcards):

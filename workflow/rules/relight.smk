@@ -12,10 +12,10 @@ rule relight:
     input:
         estimate=layout.ESTIMATE,
         mesh=layout.OBJECT_MESH,
-        envmaps=lambda w: [fill(layout.ENVMAP, env=r) for r in relight_envs(w.env, w.method)],
+        envmaps=lambda w: [fill(layout.ENVMAP, env=r) for r in relight_envs(w.object, w.env, w.method)],
         # cameras and reference images, one test capture per environment
         tests=lambda w: [
-            fill(layout.CAPTURE, object=w.object, env=r, split="test") for r in relight_envs(w.env, w.method)
+            fill(layout.CAPTURE, object=w.object, env=r, split="test") for r in relight_envs(w.object, w.env, w.method)
         ],
         code=library("relight"),
     output:
@@ -34,11 +34,11 @@ rule relight:
     params:
         variant=config["mitsuba"]["variant"],
         render={key: config["render"][key] for key in RELIGHT_KEYS},
-        relight_envs=lambda w: relight_envs(w.env, w.method),
+        relight_envs=lambda w: relight_envs(w.object, w.env, w.method),
         # The reference renders' seeds: same sample sequence, so a perfect estimate
         # reproduces the reference image noise and all.
         seeds=lambda w: [
-            derived_seed(config["seed"], "render", w.object, r, "test") for r in relight_envs(w.env, w.method)
+            derived_seed(config["seed"], "render", w.object, r, "test") for r in relight_envs(w.object, w.env, w.method)
         ],
     script:
         "../scripts/relight.py"

@@ -80,6 +80,7 @@ rule tables:
             "capture_envs": CAPTURE_ENVS,
             "envs": ENVS,
             "relight_envs": config["evaluate"]["relight_envs"],
+            "relight_methods": config["evaluate"]["relight_methods"],
             "render": {key: config["render"][key] for key in ("train_views", "test_views", "resolution", "spp")},
             "poses": POSES,
             "methods": METHODS,

@@ -21,8 +21,9 @@ _STEP = 50  # vertical distance between nodes, in the template's units (Snakemak
 
 
 def rule_order(first_level: Mapping[str, int], edges: Iterable[tuple[str, str]]) -> list[str]:
-    """The rules, each once, every rule after the rules it depends on where the rule graph is
-    acyclic; ties (and a cycle's rules, once no rule is free) go by first level, then name.
+    """The rules, each once, every rule after the rules it depends on; the rules of a cycle
+    (rules whose jobs depend on each other's both ways) together, after what the cycle depends
+    on. Ties go by first level, then name.
 
     Parameters
     ----------
@@ -30,25 +31,57 @@ def rule_order(first_level: Mapping[str, int], edges: Iterable[tuple[str, str]])
         Rule -> the first level of the job DAG (Snakemake's ``dag.toposorted()``) with a job of it.
     edges : iterable of (str, str)
         (upstream rule, downstream rule) for every job dependency.
+
+    Returns
+    -------
+    list of str
+        Every rule of ``first_level`` once.
     """
     key = {rule: (level, rule) for rule, level in first_level.items()}
-    upstream = {rule: set() for rule in key}
+    upstream: dict[str, set[str]] = {rule: set() for rule in key}
+    downstream: dict[str, set[str]] = {rule: set() for rule in key}
     for source, target in edges:
         if source != target:
             upstream[target].add(source)
-    order, placed = [], set()
+            downstream[source].add(target)
+    reach = {rule: _reachable(rule, downstream) for rule in key}
+    # the strongly connected component of each rule: itself and the rules on a cycle through it
+    component = {rule: frozenset({rule} | {r for r in reach[rule] if rule in reach[r]}) for rule in key}
+    order: list[str] = []
+    placed: set[str] = set()
     while len(order) < len(key):
-        free = [rule for rule in key if rule not in placed and upstream[rule] <= placed]
-        rule = min(free or (r for r in key if r not in placed), key=key.get)
-        order.append(rule)
-        placed.add(rule)
+        free = {component[r] for r in key if r not in placed
+                and all(upstream[m] <= placed | component[r] for m in component[r])}
+        chosen = min(free, key=lambda members: min(key[m] for m in members))
+        order += sorted(chosen, key=key.get)
+        placed |= chosen
     return order
 
 
+def _reachable(rule: str, downstream: Mapping[str, set[str]]) -> set[str]:
+    """The rules downstream of ``rule``, at any distance."""
+    seen: set[str] = set()
+    stack = [rule]
+    while stack:
+        for nxt in downstream[stack.pop()]:
+            if nxt not in seen:
+                seen.add(nxt)
+                stack.append(nxt)
+    return seen
+
+
 def graph_spec(order: list[str], edges: Iterable[tuple[str, str]]) -> tuple[dict[str, Any], int, int]:
-    """The report template's graph data for rules in ``order``: nodes, and the links between
-    neighbours (``links_direct``, drawn straight) apart from the others (drawn as arcs), each
-    distinct (upstream, downstream) rule pair once; with the template's x and y extents."""
+    """The report template's graph data for rules in ``order``.
+
+    Returns
+    -------
+    spec : dict
+        ``nodes`` (rule, fixed x and y), and the links between neighbours (``links_direct``, drawn
+        straight) apart from the others (``links``, drawn as arcs), each distinct (upstream,
+        downstream) rule pair once, without self-links.
+    xmax, ymax : int
+        The template's x and y extents.
+    """
     index = {rule: i for i, rule in enumerate(order)}
     nodes = [{"rule": rule, "fx": 10, "fy": i * _STEP} for i, rule in enumerate(order)]
     links, direct = [], []
@@ -61,8 +94,8 @@ def graph_spec(order: list[str], edges: Iterable[tuple[str, str]]) -> tuple[dict
 
 
 def rulegraph_spec(dag: Any) -> tuple[dict[str, Any], int, int]:
-    """`graph_spec` of a Snakemake DAG, in place of ``snakemake.report.rulegraph_spec.rulegraph_spec``
-    (same arguments and result)."""
+    """`graph_spec` of a Snakemake DAG (``snakemake.dag.DAG``) in `rule_order`, in place of
+    ``snakemake.report.rulegraph_spec.rulegraph_spec``: the same argument and result."""
     first_level: dict[str, int] = {}
     for level, jobs in enumerate(dag.toposorted()):
         for job in jobs:

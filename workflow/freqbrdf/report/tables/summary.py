@@ -41,11 +41,13 @@ def run_facts(run: Mapping[str, object]) -> dict[str, str]:
     dict of str to str
         Aspect -> text, in reading order.
     """
-    render, relight = run["render"], run["relight_envs"]
+    render, relight, relit_methods = run["render"], run["relight_envs"], run["relight_methods"]
     if relight == "held_out":
-        relit = "every environment a capture was not taken under (held out)"
+        relit = "every environment lit as the capture was (a captured map or procedural light) but its own (held out)"
     else:
-        relit = "every environment" if relight == "all" else ", ".join(relight)
+        relit = "every environment lit as the capture was" if relight == "all" else ", ".join(relight)
+    if relit_methods != "all":
+        relit += f"; only the estimates of {', '.join(relit_methods) or 'no method'}"
     preset, kinds = run["preset"], run["env_kinds"]
     objects = ", ".join(map(object_label, run["objects"]))
     facts = {
