@@ -38,7 +38,8 @@ rule relight:
         # The reference renders' seeds: same sample sequence, so a perfect estimate
         # reproduces the reference image noise and all.
         seeds=lambda w: [
-            derived_seed(config["seed"], "render", w.object, r, "test") for r in relight_envs(w.object, w.env, w.method)
+            derived_seed(config["seed"], "render", w.object, r, "test")
+            for r in relight_envs(w.object, w.env, w.method)
         ],
     script:
         "../scripts/relight.py"
